@@ -1,0 +1,340 @@
+"""Deterministic finite-horizon grid MDPs and exact maximum-entropy trajectory inference.
+
+Conventions (IRD_SPEC.md section 1):
+
+- A map is a feature array ``F`` of shape ``(H, W, d)``; cell ``(row, col)`` has state index
+  ``s = row * W + col``; row 0 is the bottom row.
+- The successors of a cell are the cell itself ("stay") and its in-grid 4-neighbours, each once.
+  The relation is symmetric, so predecessors equal successors, which lets the forward and the
+  backward passes share one operator.
+- A trajectory ``xi = (s_0, ..., s_T)`` has ``T = horizon`` moves and ``T + 1`` states, start
+  included; ``phi(xi) = sum_t F[s_t]`` and ``r(xi; w) = w . phi(xi)``.
+
+Maximum-entropy agent (section 2): ``P(xi | w) ∝ exp(w . phi(xi))`` over all trajectories.
+Every quantity is computed exactly by dynamic programming over the grid, in log space,
+vectorised over a batch of ``K`` weight vectors and over cells: a step is a handful of shifted
+array views, never a Python loop over cells or weights. Cost ``O(T * K * H * W * (d + 5))``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "MOVES",
+    "GridMDP",
+    "cell_rewards",
+    "soft_values",
+    "log_partition",
+    "expected_visitation",
+    "feature_expectations",
+    "hard_values",
+    "optimal_path",
+    "successor_table",
+    "path_features",
+    "path_return",
+    "validate_path",
+]
+
+#: The actions as (d_row, d_col), in tie-breaking order: "stay" first, so an indifferent agent
+#: stays put, then up (row + 1), down, right (col + 1), left.
+MOVES: tuple[tuple[int, int], ...] = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+@dataclass(frozen=True, eq=False)
+class GridMDP:
+    """A deterministic grid MDP with a finite horizon.
+
+    Attributes:
+        features: ``(H, W, d)`` float64 feature array, finite.
+        start: ``(row, col)`` start cell, on the map.
+        horizon: ``T >= 1`` moves; trajectories visit ``T + 1`` states.
+    """
+
+    features: np.ndarray
+    start: tuple[int, int]
+    horizon: int
+
+    def __post_init__(self) -> None:
+        features = np.asarray(self.features, dtype=np.float64)
+        if features.ndim != 3:
+            raise ValueError(f"features: expected shape (H, W, d), got {features.shape}")
+        if min(features.shape) < 1:
+            raise ValueError(f"features: every dimension must be >= 1, got {features.shape}")
+        if not np.all(np.isfinite(features)):
+            raise ValueError("features: contains NaN or infinite values")
+        try:
+            row, col = (int(v) for v in self.start)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"start: expected (row, col), got {self.start!r}") from exc
+        height, width = features.shape[:2]
+        if not (0 <= row < height and 0 <= col < width):
+            raise ValueError(f"start: ({row}, {col}) is off the {height}x{width} map")
+        if isinstance(self.horizon, bool) or int(self.horizon) != self.horizon or self.horizon < 1:
+            raise ValueError(f"horizon: expected an integer >= 1, got {self.horizon!r}")
+        features.setflags(write=False)
+        object.__setattr__(self, "features", features)
+        object.__setattr__(self, "start", (row, col))
+        object.__setattr__(self, "horizon", int(self.horizon))
+
+    @property
+    def height(self) -> int:
+        return int(self.features.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.features.shape[1])
+
+    @property
+    def num_features(self) -> int:
+        return int(self.features.shape[2])
+
+    @property
+    def num_states(self) -> int:
+        return self.height * self.width
+
+    @property
+    def start_state(self) -> int:
+        return self.start[0] * self.width + self.start[1]
+
+    def with_features(self, features: np.ndarray) -> "GridMDP":
+        """The same grid, start and horizon with another ``(H, W, d')`` feature array."""
+        return GridMDP(features, self.start, self.horizon)
+
+
+def _as_weights(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """Validate a ``(K, d)`` batch of weight vectors (a single ``(d,)`` vector is rejected)."""
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 2 or w.shape[1] != mdp.num_features:
+        raise ValueError(f"weights: expected shape (K, {mdp.num_features}), got {w.shape}")
+    if not np.all(np.isfinite(w)):
+        raise ValueError("weights: contains NaN or infinite values")
+    return w
+
+
+def cell_rewards(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """Per-cell rewards ``w_k . F[row, col]``.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(K, H, W)``.
+    """
+    w = _as_weights(mdp, weights)
+    return np.einsum("hwd,kd->khw", mdp.features, w, optimize=True)
+
+
+def _shifted(values: np.ndarray, fill: float) -> list[np.ndarray]:
+    """The five successor views of ``values`` ``(..., H, W)``, off-grid entries set to ``fill``.
+
+    Entry ``m`` at ``[..., r, c]`` holds ``values[..., r + dr, c + dc]`` for ``MOVES[m]``.
+    """
+    pad = [(0, 0)] * (values.ndim - 2) + [(1, 1), (1, 1)]
+    padded = np.pad(values, pad, constant_values=fill)
+    views = []
+    for d_row, d_col in MOVES:
+        views.append(padded[..., 1 + d_row : padded.shape[-2] - 1 + d_row,
+                            1 + d_col : padded.shape[-1] - 1 + d_col])
+    return views
+
+
+def _neighbour_logsumexp(values: np.ndarray) -> np.ndarray:
+    """``log sum_{s' in succ(s)} exp(values[s'])`` for every cell; ``(..., H, W)`` -> same.
+
+    Safe for ``-inf`` entries (unreachable cells) and for huge magnitudes.
+    """
+    views = _shifted(values, -np.inf)
+    peak = np.maximum.reduce(views)
+    finite_peak = np.where(np.isfinite(peak), peak, 0.0)
+    total = sum(np.exp(view - finite_peak) for view in views)
+    with np.errstate(divide="ignore"):
+        return finite_peak + np.log(total)
+
+
+def soft_values(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """Soft (log-sum-exp) values of the time-indexed grid, by backward induction.
+
+    ``V[T] = r`` and ``V[t](s) = r(s) + log sum_{s' in succ(s)} exp(V[t+1](s'))``, so
+    ``V[t](s)`` is the log of the summed exponentiated return of all trajectory suffixes that
+    occupy ``s`` at time ``t``.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(T + 1, K, H, W)``.
+    """
+    rewards = cell_rewards(mdp, weights)
+    values = np.empty((mdp.horizon + 1,) + rewards.shape)
+    values[-1] = rewards
+    for t in range(mdp.horizon - 1, -1, -1):
+        values[t] = rewards + _neighbour_logsumexp(values[t + 1])
+    return values
+
+
+def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """``log Z(w) = log sum_xi exp(w . phi(xi))`` over all trajectories from the start.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(K,)``.
+    """
+    rewards = cell_rewards(mdp, weights)
+    value = rewards
+    for _ in range(mdp.horizon):
+        value = rewards + _neighbour_logsumexp(value)
+    return value[:, mdp.start[0], mdp.start[1]].copy()
+
+
+def _log_visitation(mdp: GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Log occupancy ``log P(s_t = s)`` summed over time, and ``log Z``.
+
+    Uses forward messages ``alpha[t](s)`` (log summed exponentiated return of prefixes ending in
+    ``s`` at ``t``) and backward soft values: ``P(s_t = s) = exp(alpha[t] + V[t] - r - log Z)``.
+
+    Returns:
+        ``(K, H, W)`` log expected visit counts, and ``(K,)`` log Z.
+    """
+    values = soft_values(mdp, weights)
+    rewards = values[-1]
+    row, col = mdp.start
+    log_z = values[0][:, row, col].copy()
+    alpha = np.full_like(rewards, -np.inf)
+    alpha[:, row, col] = rewards[:, row, col]
+    offset = (log_z[:, None, None] + rewards)  # subtracted from alpha + V at every step
+    log_visits = alpha + values[0] - offset
+    for t in range(1, mdp.horizon + 1):
+        alpha = rewards + _neighbour_logsumexp(alpha)
+        log_visits = np.logaddexp(log_visits, alpha + values[t] - offset)
+    return log_visits, log_z
+
+
+def expected_visitation(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """Expected number of visits to each cell over ``t = 0..T`` under ``P(xi | w)``.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(K, H, W)``; each slice sums to ``T + 1``.
+    """
+    log_visits, _ = _log_visitation(mdp, weights)
+    return np.exp(log_visits)
+
+
+def feature_expectations(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """``E[phi(xi) | w]``, the gradient of ``log Z`` with respect to ``w``.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(K, d)``.
+    """
+    visits = expected_visitation(mdp, weights)
+    return np.einsum("khw,hwd->kd", visits, mdp.features, optimize=True)
+
+
+def log_partition_and_feature_expectations(
+    mdp: GridMDP, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``log Z`` ``(K,)`` and ``E[phi]`` ``(K, d)`` from one pair of passes (for gradients)."""
+    log_visits, log_z = _log_visitation(mdp, weights)
+    expectations = np.einsum("khw,hwd->kd", np.exp(log_visits), mdp.features, optimize=True)
+    return log_z, expectations
+
+
+__all__.append("log_partition_and_feature_expectations")
+
+
+def _check_cell_rewards(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
+    r = np.asarray(rewards, dtype=np.float64)
+    if r.shape != (mdp.height, mdp.width):
+        raise ValueError(f"cell_rewards: expected shape ({mdp.height}, {mdp.width}), got {r.shape}")
+    if np.any(np.isnan(r)) or np.any(r == np.inf):
+        raise ValueError("cell_rewards: contains NaN or +inf")
+    return r
+
+
+def hard_values(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
+    """Optimal (hard max) values for a per-cell reward: ``V[t] = r + max_succ V[t+1]``.
+
+    Args:
+        rewards: ``(H, W)`` per-cell reward (``-inf`` marks a forbidden cell).
+    Returns:
+        ``(T + 1, H, W)``; ``V[0][start]`` is the best total reward of ``T + 1`` states.
+    """
+    r = _check_cell_rewards(mdp, rewards)
+    values = np.empty((mdp.horizon + 1,) + r.shape)
+    values[-1] = r
+    for t in range(mdp.horizon - 1, -1, -1):
+        values[t] = r + np.maximum.reduce(_shifted(values[t + 1], -np.inf))
+    return values
+
+
+def optimal_path(mdp: GridMDP, rewards: np.ndarray) -> tuple[list[tuple[int, int]], float]:
+    """A path maximising ``sum_t rewards[s_t]`` and its value.
+
+    Ties are broken in ``MOVES`` order (stay first), so the result is deterministic.
+
+    Args:
+        rewards: ``(H, W)`` per-cell reward.
+    Returns:
+        ``T + 1`` cells ``(row, col)`` starting at the start, and the optimal value.
+    """
+    values = hard_values(mdp, rewards)
+    row, col = mdp.start
+    cells = [(row, col)]
+    for t in range(1, mdp.horizon + 1):
+        best_move, best_value = None, -np.inf
+        for d_row, d_col in MOVES:
+            r2, c2 = row + d_row, col + d_col
+            if 0 <= r2 < mdp.height and 0 <= c2 < mdp.width and values[t][r2, c2] > best_value:
+                best_move, best_value = (r2, c2), values[t][r2, c2]
+        if best_move is None:  # every successor forbidden: stay (value is -inf anyway)
+            best_move = (row, col)
+        row, col = best_move
+        cells.append((row, col))
+    return cells, float(values[0][mdp.start])
+
+
+def successor_table(height: int, width: int) -> np.ndarray:
+    """Successor state indices of every cell, ``-1`` where a move leaves the grid.
+
+    Returns:
+        ``(H * W, 5)`` int64, columns in ``MOVES`` order (column 0 is the cell itself).
+    """
+    rows, cols = np.divmod(np.arange(height * width), width)
+    table = np.full((height * width, len(MOVES)), -1, dtype=np.int64)
+    for m, (d_row, d_col) in enumerate(MOVES):
+        r2, c2 = rows + d_row, cols + d_col
+        inside = (r2 >= 0) & (r2 < height) & (c2 >= 0) & (c2 < width)
+        table[inside, m] = r2[inside] * width + c2[inside]
+    return table
+
+
+def validate_path(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray") -> np.ndarray:
+    """Check that ``cells`` is a legal trajectory of ``mdp``; return it as ``(T + 1, 2)`` ints."""
+    path = np.asarray(cells, dtype=np.int64)
+    if path.shape != (mdp.horizon + 1, 2):
+        raise ValueError(f"cells: expected {mdp.horizon + 1} (row, col) pairs, got shape {path.shape}")
+    if tuple(path[0]) != mdp.start:
+        raise ValueError(f"cells: path starts at {tuple(path[0])}, not at the start {mdp.start}")
+    inside = (path[:, 0] >= 0) & (path[:, 0] < mdp.height) & (path[:, 1] >= 0) & (path[:, 1] < mdp.width)
+    if not inside.all():
+        raise ValueError(f"cells: step {int(np.argmin(inside))} is off the map")
+    steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
+    if np.any(steps > 1):
+        raise ValueError(f"cells: move {int(np.argmax(steps > 1))} is not a stay or a 4-neighbour step")
+    return path
+
+
+def path_features(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray") -> np.ndarray:
+    """``phi(xi) = sum_t F[s_t]`` for a legal path; ``(d,)``."""
+    path = validate_path(mdp, cells)
+    return mdp.features[path[:, 0], path[:, 1]].sum(axis=0)
+
+
+def path_return(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray", weights: np.ndarray) -> np.ndarray:
+    """``w_k . phi(xi)`` for a batch ``(K, d)`` of weights; ``(K,)``."""
+    return _as_weights(mdp, weights) @ path_features(mdp, cells)

@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Benchmark: IRD posterior sampling on latent_raw (d = 50), batched chains vs one weight per call.
+
+For each method (MaxEnt-Z, Sample-Z) it times ``sample_posterior`` (1000 samples, default sampler
+settings) on a 15x15 training map with T = 30, and prints wall time, batched log-density calls,
+weight evaluations, acceptance rate, split R-hat (rank-normalised, max over coordinates), bulk
+ESS (min over coordinates), step size and leapfrog steps.
+
+The naive reference does the SAME log-posterior(+gradient) work one weight vector per MDP call:
+it times ``--naive-calls`` such calls on the run's own draws and extrapolates to the number of
+weight evaluations the batched run made (``--full-naive`` runs all of them instead; slow).
+
+    python scripts/bench_inference.py [--seed 0] [--beta 1.0] [--samples 1000] [--methods maxent_z sample_z]
+    python scripts/bench_inference.py --proxy-study   # Sample-Z sensitivity to the number of proxies
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+from ird_core import inference, lavaland
+
+
+def progress_printer(label: str):
+    def progress(step: int, total: int) -> None:
+        if step % 10 == 0 or step == total:
+            print(f"\r  {label}: MCMC step {step}/{total}", end="", file=sys.stderr, flush=True)
+            if step == total:
+                print(file=sys.stderr)
+    return progress
+
+
+def naive_seconds_per_weight(model: inference.PosteriorModel, weights: np.ndarray, kernel: str) -> float:
+    """Seconds per weight of the sampler's evaluation done one ``(1, d)`` weight per call."""
+    start = time.perf_counter()
+    for w in weights:
+        if kernel == "rwm":
+            model.log_density(w[None])
+        else:
+            model.log_density_and_grad(w[None])
+    return (time.perf_counter() - start) / len(weights)
+
+
+def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> None:
+    """How Sample-Z log-posterior differences between posterior-typical weights move with N."""
+    mdp = lavaland.train_mdp(instance)
+    draws = inference.sample_posterior(instance.proxy_weights, mdp, beta, "maxent_z", 256, seed).samples
+    reference = inference.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z",
+                                        seed=seed + 1, num_proxy_samples=6400)
+    reference = reference - reference.mean()
+    print(f"Sample-Z log-posterior differences between 256 MaxEnt-Z posterior draws vs N = 6400 proxies "
+          f"(beta {beta:g}):")
+    print(f"{'N':>6} {'rms error (nats)':>17} {'sd of differences':>18}")
+    for n in (25, 50, 100, 200, 400, 800, 1600):
+        values = inference.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z", seed=seed + 1,
+                                         num_proxy_samples=n)
+        values = values - values.mean()
+        print(f"{n:>6} {np.sqrt(np.mean((values - reference) ** 2)):>17.3f} {reference.std():>18.3f}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--beta", type=float, default=1.0)
+    parser.add_argument("--samples", type=int, default=1000)
+    parser.add_argument("--size", type=int, default=15)
+    parser.add_argument("--horizon", type=int, default=30)
+    parser.add_argument("--methods", nargs="+", default=list(inference.METHODS), choices=inference.METHODS)
+    parser.add_argument("--naive-calls", type=int, default=200)
+    parser.add_argument("--full-naive", action="store_true")
+    parser.add_argument("--proxy-study", action="store_true")
+    args = parser.parse_args(argv)
+
+    instance = lavaland.make_instance("latent_raw", args.seed, size=args.size, horizon=args.horizon)
+    mdp = lavaland.train_mdp(instance)
+    print(f"latent_raw seed {args.seed}: {args.size}x{args.size}, T = {args.horizon}, d = {instance.num_features}, "
+          f"beta = {args.beta:g}, {args.samples} samples; {os.cpu_count()} CPUs, load average "
+          f"{os.getloadavg()[0]:.2f}")
+    if args.proxy_study:
+        proxy_study(instance, args.beta, args.seed)
+        return 0
+
+    rows = []
+    for method in args.methods:
+        start = time.perf_counter()
+        post = inference.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples, args.seed,
+                                          progress=progress_printer(method))
+        seconds = time.perf_counter() - start
+        model = inference.make_posterior_model(instance.proxy_weights, mdp, args.beta, method, seed=args.seed)
+        per_call = post.num_chains * (2 if method == "sample_z" and post.kernel != "rwm" else 1)
+        weight_evals = post.num_evaluations * per_call
+        pool = post.samples[np.linspace(0, len(post.samples) - 1, min(args.naive_calls, len(post.samples))).astype(int)]
+        if args.full_naive:
+            pool = post.samples[np.arange(post.num_evaluations * post.num_chains) % len(post.samples)]
+        naive = naive_seconds_per_weight(model, pool, post.kernel) * post.num_evaluations * post.num_chains
+        rows.append((method, seconds, post, weight_evals, naive))
+
+    print()
+    print(f"{'method':<9} {'kernel':<6} {'time s':>7} {'calls':>6} {'weight evals':>12} {'accept':>6} {'R-hat':>6} "
+          f"{'ESS':>6} {'step':>6} {'L':>3} {'chains':>6} {'warmup':>6} {'thin':>4} {'naive s':>8} {'speed-up':>8}")
+    for method, seconds, post, weight_evals, naive in rows:
+        steps = max(1, int(np.clip(round(inference.DEFAULT_TRAJECTORY_LENGTH / post.step_size), 1,
+                                   inference.DEFAULT_MAX_LEAPFROG[method]))) if post.kernel == "hmc" else 1
+        print(f"{method:<9} {post.kernel:<6} {seconds:>7.1f} {post.num_evaluations:>6d} {weight_evals:>12d} "
+              f"{post.acceptance_rate:>6.2f} {post.r_hat_max:>6.3f} {post.ess_min:>6.0f} {post.step_size:>6.3f} "
+              f"{steps:>3d} {post.num_chains:>6d} {post.warmup:>6d} {post.thin:>4d} {naive:>8.1f} "
+              f"{naive / seconds:>7.1f}x")
+    print("calls: batched log-density(+gradient) calls of the sampler (warm-up included; the Laplace "
+          "approximation's few calls are in the time but not counted).")
+    print("naive: the same sampler evaluations, one weight vector per MDP call "
+          + ("(all run)." if args.full_naive else f"(extrapolated from {args.naive_calls} timed calls)."))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,116 @@
+#!/usr/bin/env bash
+# Set up (or bring up to date) the project's venv in .venv:
+#   1. create .venv from python3 (3.11),
+#   2. pip install the pinned requirements.txt (ROS 2 Jazzy wheels, numpy, ...),
+#   3. build msgs_config/ird_msgs with cmake and install it into the venv,
+#   4. install this project (ird_core, ird_ros) editable.
+# Each step keeps a stamp (a hash of its inputs) in .venv/.ird-stamps and is skipped
+# when its inputs did not change, so a second run takes about a second.
+# Environment: IRD_PYTHON (interpreter to create the venv from, default python3),
+#              IRD_BOOTSTRAP_FORCE=1 (redo every step), IRD_BOOTSTRAP_VERBOSE=1 (full logs).
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="$ROOT/.venv"
+PY="$VENV/bin/python"
+STAMPS="$VENV/.ird-stamps"
+MSGS_SRC="$ROOT/msgs_config/ird_msgs"
+MSGS_BUILD="$VENV/build/ird_msgs"
+LOG_DIR="$VENV/build/logs"
+
+say() { printf '[bootstrap] %s\n' "$*"; }
+die() { printf '[bootstrap] ERROR: %s\n' "$*" >&2; exit 1; }
+hash_files() { # hash of the names and contents of the given files (sorted)
+  (cd "$ROOT" && LC_ALL=C sort -z | xargs -0 sha256sum) | sha256sum | cut -d' ' -f1
+}
+stamp_ok() { [[ "${IRD_BOOTSTRAP_FORCE:-0}" != 1 && -f "$STAMPS/$1" && "$(cat "$STAMPS/$1")" == "$2" ]]; }
+stamp_set() { mkdir -p "$STAMPS"; printf '%s\n' "$2" > "$STAMPS/$1"; }
+# Run a step quietly; on failure show the tail of its log and stop.
+run_logged() {
+  local name="$1"; shift
+  local log="$LOG_DIR/$name.log"
+  mkdir -p "$LOG_DIR"
+  if [[ "${IRD_BOOTSTRAP_VERBOSE:-0}" == 1 ]]; then
+    "$@" 2>&1 | tee "$log"
+  elif ! "$@" > "$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    die "step '$name' failed (full log: $log). Fix the cause, or start over with: rm -rf .venv"
+  fi
+}
+
+# A venv python that inherited another venv's bootstrap guard would skip setting
+# LD_LIBRARY_PATH for this venv (see ros-wheels-bootstrapper): let it redo that.
+unset _ROS_WHEELS_BOOTSTRAP_COMPLETE
+
+# One bootstrap at a time per checkout (two test runs may start together).
+exec 8> "$ROOT/.bootstrap.lock"
+flock 8 || die "cannot lock $ROOT/.bootstrap.lock"
+
+# --- 1. the venv ---------------------------------------------------------------
+BASE_PY="${IRD_PYTHON:-python3}"
+if [[ ! -x "$PY" ]] || ! "$PY" -c 'import sys; assert sys.version_info[:2] == (3, 11)' 2>/dev/null; then
+  command -v "$BASE_PY" >/dev/null || die "'$BASE_PY' not found; install Python 3.11 or set IRD_PYTHON"
+  "$BASE_PY" -c 'import sys; assert sys.version_info[:2] == (3, 11), sys.version' 2>/dev/null \
+    || die "'$BASE_PY' is $("$BASE_PY" -V 2>&1), but the ROS 2 Jazzy wheels need Python 3.11 (set IRD_PYTHON)"
+  [[ -e "$VENV" ]] && { say "removing unusable $VENV"; rm -rf "$VENV"; }
+  say "creating .venv from $("$BASE_PY" -c 'import sys; print(sys.executable)')"
+  "$BASE_PY" -m venv "$VENV" || die "python -m venv failed (Debian: apt-get install python3-venv)"
+fi
+PY_TAG="$("$PY" -c 'import sys; print(sys.version)')"
+
+# --- 2. pinned requirements -----------------------------------------------------
+REQ_HASH="$( { printf '%s\0' requirements.txt | hash_files; echo "$PY_TAG"; } | sha256sum | cut -d' ' -f1)"
+if stamp_ok requirements "$REQ_HASH"; then
+  say "requirements: up to date"
+else
+  say "requirements: pip install -r requirements.txt (about 1 minute the first time)"
+  run_logged pip-install "$PY" -m pip install --disable-pip-version-check --no-input \
+    -r "$ROOT/requirements.txt"
+  rm -f "$STAMPS/ird_msgs" "$STAMPS/project"   # rebuild against the new wheels
+  stamp_set requirements "$REQ_HASH"
+fi
+
+# --- 3. ird_msgs ------------------------------------------------------------------
+MSGS_HASH="$( { (cd "$ROOT" && find msgs_config/ird_msgs -type f -print0) | hash_files; echo "$REQ_HASH"; } \
+  | sha256sum | cut -d' ' -f1)"
+if stamp_ok ird_msgs "$MSGS_HASH"; then
+  say "ird_msgs: up to date"
+else
+  command -v cmake >/dev/null || die "cmake (>= 3.22) not found: apt-get install cmake"
+  command -v c++ >/dev/null || die "a C/C++ compiler is needed to build ird_msgs: apt-get install g++"
+  "$PY" -c 'import sysconfig, os, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
+    || die "Python.h not found for $PY (install the Python 3.11 development headers)"
+  say "ird_msgs: building with cmake (about 20 s)"
+  # Remove what an earlier build installed, so deleted interfaces do not linger.
+  if [[ -f "$MSGS_BUILD/install_manifest.txt" ]]; then
+    xargs -d '\n' rm -f < "$MSGS_BUILD/install_manifest.txt"
+    rm -rf "$VENV/lib/python3.11/site-packages/ird_msgs" "$VENV"/lib/python3.11/site-packages/ird_msgs-*.egg-info
+  fi
+  rm -rf "$MSGS_BUILD"
+  # Only the venv's ROS: a sourced system ROS must not leak into this build.
+  export AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV"
+  run_logged ird_msgs-configure cmake -S "$MSGS_SRC" -B "$MSGS_BUILD" \
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$PY" \
+    -DBUILD_TESTING=OFF -DIRD_MSGS_PIP_VENV=ON
+  run_logged ird_msgs-build cmake --build "$MSGS_BUILD" --parallel "$(nproc 2>/dev/null || echo 2)"
+  run_logged ird_msgs-install cmake --install "$MSGS_BUILD"
+  unset AMENT_PREFIX_PATH CMAKE_PREFIX_PATH
+  "$PY" -c 'import ird_msgs.msg, ird_msgs.srv' || die "ird_msgs was installed but does not import"
+  stamp_set ird_msgs "$MSGS_HASH"
+fi
+
+# --- 4. the project, editable -------------------------------------------------------
+PROJ_HASH="$( { printf '%s\0' pyproject.toml | hash_files; echo "$REQ_HASH"; } | sha256sum | cut -d' ' -f1)"
+if stamp_ok project "$PROJ_HASH"; then
+  say "project: up to date"
+else
+  say "project: pip install -e . (ird_core, ird_ros)"
+  run_logged project-install "$PY" -m pip install --disable-pip-version-check --no-input \
+    --no-deps --no-build-isolation -e "$ROOT"
+  stamp_set project "$PROJ_HASH"
+fi
+
+# --- sanity: the pieces import together ---------------------------------------------
+"$PY" -c 'import rclpy, ird_msgs.msg, ird_core, ird_ros' \
+  || die "the venv is incomplete (see the error above); start over with: rm -rf .venv && bash scripts/bootstrap.sh"
+say "ready: $PY"

@@ -1,0 +1,39 @@
+# Source this file, then call ird_ros_env: it prepares a private, localhost-only ROS 2
+# environment for this shell and its children.
+#   - ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (ROS_LOCALHOST_ONLY is unset);
+#   - ROS_DOMAIN_ID: kept if already set, else leased in 0..101 by taking an flock on
+#     ${IRD_DOMAIN_LOCK_DIR:-/tmp/ird_ros_domains}/domain_<N>.lock on file descriptor 9
+#     (held while this shell or any child lives; the same lock files as
+#     ird_ros.testing.lease_domain, so concurrent runs never share a domain);
+#     the search starts at IRD_TEST_DOMAIN_BASE if set, else at a pid-derived ID;
+#   - ROS_LOG_DIR: kept if set, else a fresh temporary directory (IRD_ROS_LOG_TMP names it,
+#     for the caller to remove).
+# Also drops an inherited ros-wheels-bootstrapper guard, so the venv's python sets
+# LD_LIBRARY_PATH for itself.
+
+ird_ros_env() {
+  export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+  unset ROS_LOCALHOST_ONLY _ROS_WHEELS_BOOTSTRAP_COMPLETE
+  if [[ -z "${ROS_DOMAIN_ID:-}" ]]; then
+    local dir="${IRD_DOMAIN_LOCK_DIR:-/tmp/ird_ros_domains}" n=102 start i id
+    mkdir -p "$dir" && chmod 1777 "$dir" 2>/dev/null || true
+    start="${IRD_TEST_DOMAIN_BASE:-$(( ($$ * 7919) % n ))}"
+    for (( i = 0; i < n; i++ )); do
+      id=$(( (start + i) % n ))
+      exec 9>>"$dir/domain_$id.lock" || continue
+      if flock -n 9; then
+        export ROS_DOMAIN_ID="$id"
+        break
+      fi
+      exec 9>&-
+    done
+    if [[ -z "${ROS_DOMAIN_ID:-}" ]]; then
+      echo "ird_ros_env: all ROS domain IDs 0..101 are in use (locks in $dir)" >&2
+      return 1
+    fi
+  fi
+  if [[ -z "${ROS_LOG_DIR:-}" ]]; then
+    IRD_ROS_LOG_TMP="$(mktemp -d "${TMPDIR:-/tmp}/ird_ros_log.XXXXXX")"
+    export ROS_LOG_DIR="$IRD_ROS_LOG_TMP"
+  fi
+}

@@ -1,0 +1,222 @@
+"""Batched MCMC kernels, warm-up adaptation and convergence diagnostics (ird_core.mcmc)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ird_core import mcmc
+
+
+def ar1(rng: np.random.Generator, rho: float, chains: int, n: int, dim: int) -> np.ndarray:
+    """Stationary AR(1) chains with unit marginal variance; (C, n, d)."""
+    x = np.empty((chains, n, dim))
+    x[:, 0] = rng.standard_normal((chains, dim))
+    noise = np.sqrt(1.0 - rho**2) * rng.standard_normal((chains, n, dim))
+    for t in range(1, n):
+        x[:, t] = rho * x[:, t - 1] + noise[:, t]
+    return x
+
+
+# ------------------------------------------------------------------------------ diagnostics
+
+
+def test_iid_normal_draws_r_hat_one_and_ess_n() -> None:
+    draws = np.random.default_rng(0).standard_normal((4, 1000, 20))
+    assert np.all(np.abs(mcmc.split_r_hat(draws) - 1.0) < 0.01)
+    assert np.all(np.abs(mcmc.rank_normalized_r_hat(draws) - 1.0) < 0.01)
+    ess = mcmc.effective_sample_size(draws)
+    assert abs(ess.mean() / 4000 - 1.0) < 0.05
+    assert np.all(np.abs(ess / 4000 - 1.0) < 0.2)
+    bulk = mcmc.bulk_effective_sample_size(draws)
+    assert abs(bulk.mean() / 4000 - 1.0) < 0.05
+
+
+@pytest.mark.parametrize("rho", [0.5, 0.9])
+def test_ar1_ess_matches_theory(rho: float) -> None:
+    draws = ar1(np.random.default_rng(1), rho, chains=4, n=5000, dim=20)
+    expected = draws.shape[0] * draws.shape[1] * (1 - rho) / (1 + rho)
+    ess = mcmc.effective_sample_size(draws)
+    assert abs(ess.mean() / expected - 1.0) < 0.1, (ess.mean(), expected)
+    assert np.all(np.abs(ess / expected - 1.0) < 0.3)
+    # Stationary and mixed: R-hat close to 1.
+    assert mcmc.rank_normalized_r_hat(draws).max() < 1.02
+
+
+def test_antithetic_chain_ess_above_n_is_capped() -> None:
+    # rho < 0: ESS > N (antithetic); capped at N log10(N) like Stan.
+    draws = ar1(np.random.default_rng(2), -0.5, chains=2, n=2000, dim=5)
+    ess = mcmc.effective_sample_size(draws)
+    assert np.all(ess > 4000) and np.all(ess <= 4000 * np.log10(4000))
+
+
+def test_chains_with_different_means_have_large_r_hat() -> None:
+    rng = np.random.default_rng(3)
+    draws = rng.standard_normal((4, 500, 3)) + np.array([0.0, 0.0, 1.0, 2.0])[:, None, None]
+    assert np.all(mcmc.split_r_hat(draws) > 1.1)
+    assert np.all(mcmc.rank_normalized_r_hat(draws) > 1.1)
+
+
+def test_drifting_chain_caught_by_splitting() -> None:
+    # Each chain drifts from -1 to 1: the chain means agree, but the halves do not.
+    rng = np.random.default_rng(4)
+    drift = np.linspace(-1.5, 1.5, 1000)[None, :, None]
+    draws = rng.standard_normal((4, 1000, 2)) * 0.3 + drift
+    assert np.all(mcmc.split_r_hat(draws) > 1.5)
+
+
+def test_folded_r_hat_catches_different_scales() -> None:
+    # Same location, different spread: classic (bulk) R-hat misses it, the folded one does not.
+    rng = np.random.default_rng(5)
+    draws = rng.standard_normal((4, 1000, 2)) * np.array([1.0, 1.0, 1.0, 4.0])[:, None, None]
+    assert np.all(mcmc.split_r_hat(draws) < 1.05)
+    assert np.all(mcmc.rank_normalized_r_hat(draws) > 1.1)
+
+
+def test_constant_coordinate() -> None:
+    draws = np.ones((3, 10, 2))
+    draws[:, :, 1] = np.random.default_rng(0).standard_normal((3, 10))
+    assert mcmc.split_r_hat(draws)[0] == 1.0
+    assert np.isnan(mcmc.effective_sample_size(draws)[0])
+
+
+def test_rank_normalize_is_monotone_and_normal() -> None:
+    x = np.random.default_rng(6).exponential(size=(2, 500, 1))
+    z = mcmc.rank_normalize(x)
+    order = np.argsort(x.ravel())
+    assert np.all(np.diff(z.ravel()[order]) > 0)
+    assert abs(z.mean()) < 1e-12 and abs(z.std() - 1.0) < 0.02
+
+
+def test_split_chains_shape() -> None:
+    x = np.arange(2 * 7 * 3, dtype=float).reshape(2, 7, 3)
+    halves = mcmc.split_chains(x)
+    assert halves.shape == (4, 3, 3)
+    np.testing.assert_array_equal(halves[0], x[0, :3])
+    np.testing.assert_array_equal(halves[2], x[0, 4:])
+
+
+@pytest.mark.parametrize("bad", [np.ones((2, 3, 1)), np.ones(5), np.full((2, 10, 1), np.nan)])
+def test_diagnostics_reject_bad_draws(bad: np.ndarray) -> None:
+    with pytest.raises(ValueError, match="draws"):
+        mcmc.split_r_hat(bad)
+
+
+# ------------------------------------------------------------------------------ adaptation
+
+
+def test_dual_averaging_finds_target_step() -> None:
+    # Acceptance exp(-h): target 0.5 is reached at h = log 2.
+    adapt = mcmc.DualAveraging.start(0.01, 0.5)
+    for _ in range(400):
+        adapt = adapt.update(float(np.exp(-adapt.step)))
+    assert abs(adapt.final_step - np.log(2.0)) < 0.02
+
+
+def test_warmup_windows_schedule() -> None:
+    assert mcmc.warmup_windows(10) == []
+    for warmup in (30, 60, 100, 300, 1000):
+        windows = mcmc.warmup_windows(warmup)
+        assert windows[0][0] >= 0.15 * warmup - 1
+        assert windows[-1][1] <= warmup - 10
+        assert all(a[1] == b[0] for a, b in zip(windows, windows[1:]))
+        lengths = [e - s for s, e in windows]
+        assert all(length >= 10 for length in lengths)
+
+
+def test_estimate_preconditioner_recovers_covariance() -> None:
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((5, 5))
+    cov = a @ a.T + 0.5 * np.eye(5)
+    draws = rng.multivariate_normal(np.zeros(5), cov, size=(8, 2000))
+    est = mcmc.estimate_preconditioner(draws, "dense")
+    np.testing.assert_allclose(est.cov, cov, rtol=0.1, atol=0.1 * np.abs(cov).max())
+    diag = mcmc.estimate_preconditioner(draws, "diag")
+    np.testing.assert_allclose(np.diag(diag.cov), np.diag(cov), rtol=0.1)
+    assert np.count_nonzero(diag.cov - np.diag(np.diag(diag.cov))) == 0
+
+
+def test_estimate_preconditioner_shrinks_few_draws() -> None:
+    # 10 draws in 20 dimensions: the raw covariance is singular, the estimate is not.
+    draws = np.random.default_rng(8).standard_normal((2, 5, 20))
+    est = mcmc.estimate_preconditioner(draws, "dense")
+    assert np.all(np.linalg.eigvalsh(est.cov) > 0)
+
+
+# ------------------------------------------------------------------------------ samplers
+
+
+def gaussian_target(mean: np.ndarray, cov: np.ndarray):
+    precision = np.linalg.inv(cov)
+
+    def log_density(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r = x - mean
+        return -0.5 * np.einsum("ki,ij,kj->k", r, precision, r), -r @ precision
+
+    return log_density
+
+
+@pytest.mark.parametrize("kernel", mcmc.KERNELS)
+def test_kernels_sample_a_correlated_gaussian(kernel: str) -> None:
+    mean = np.array([1.0, -2.0, 0.5])
+    cov = np.array([[1.0, 0.6, 0.0], [0.6, 1.0, 0.2], [0.0, 0.2, 0.25]])
+    assert np.all(np.linalg.eigvalsh(cov) > 0.05)
+    initial = np.random.default_rng(9).standard_normal((16, 3)) * 3.0
+    result = mcmc.sample_chains(gaussian_target(mean, cov), initial, 200, kernel=kernel, warmup=200,
+                                thin=2 if kernel == "rwm" else 1, seed=0)
+    draws = result.draws
+    assert draws.shape == (16, 200, 3)
+    ess = mcmc.effective_sample_size(draws)
+    flat = draws.reshape(-1, 3)
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(flat.mean(axis=0) - mean) <= 4 * sd / np.sqrt(ess))
+    # Variance error: sd of a variance estimate is ~ var * sqrt(2 / ESS).
+    assert np.all(np.abs(flat.var(axis=0) - sd**2) <= 4 * sd**2 * np.sqrt(2 / ess))
+    assert mcmc.rank_normalized_r_hat(draws).max() < 1.05
+    target = mcmc.TARGET_ACCEPT[kernel]
+    assert abs(result.acceptance_rate.mean() - target) < 0.15
+
+
+def test_sampler_is_deterministic_per_seed() -> None:
+    target = gaussian_target(np.zeros(2), np.eye(2))
+    initial = np.random.default_rng(0).standard_normal((4, 2))
+    a = mcmc.sample_chains(target, initial, 20, warmup=30, seed=5)
+    b = mcmc.sample_chains(target, initial, 20, warmup=30, seed=5)
+    c = mcmc.sample_chains(target, initial, 20, warmup=30, seed=6)
+    np.testing.assert_array_equal(a.draws, b.draws)
+    assert not np.array_equal(a.draws, c.draws)
+
+
+def test_progress_callback_counts_every_step() -> None:
+    seen: list[tuple[int, int]] = []
+    target = gaussian_target(np.zeros(2), np.eye(2))
+    mcmc.sample_chains(target, np.zeros((2, 2)) + 0.1, 5, warmup=7, thin=2, seed=0,
+                       progress=lambda step, total: seen.append((step, total)))
+    assert seen == [(i, 17) for i in range(1, 18)]
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"kernel": "nuts"}, "kernel"),
+    ({"preconditioner": "full"}, "preconditioner"),
+    ({"warmup": -1}, "warmup"),
+    ({"thin": 0}, "thin"),
+    ({"seed": -3}, "seed"),
+    ({"target_accept": 1.5}, "target_accept"),
+    ({"num_draws": 0}, "num_draws"),
+    ({"initial": np.zeros((1, 2))}, "initial"),
+])
+def test_sampler_rejects_bad_arguments(kwargs: dict, field: str) -> None:
+    args = {"initial": np.zeros((3, 2)), "num_draws": 5} | kwargs
+    initial, num_draws = args.pop("initial"), args.pop("num_draws")
+    with pytest.raises(ValueError, match=field):
+        mcmc.sample_chains(gaussian_target(np.zeros(2), np.eye(2)), initial, num_draws, **args)
+
+
+def test_gradient_kernels_need_a_gradient() -> None:
+    def no_grad(x: np.ndarray) -> tuple[np.ndarray, None]:
+        return -0.5 * np.sum(x**2, axis=1), None
+
+    with pytest.raises(ValueError, match="gradient"):
+        mcmc.sample_chains(no_grad, np.zeros((2, 2)), 5, kernel="mala", warmup=0)
+    result = mcmc.sample_chains(no_grad, np.zeros((2, 2)), 5, kernel="rwm", warmup=0)
+    assert result.draws.shape == (2, 5, 2)

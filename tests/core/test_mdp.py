@@ -1,0 +1,149 @@
+"""The grid MDP engine against brute-force enumeration of every trajectory."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from ird_core import mdp as M
+from ird_core.enumeration import (all_trajectories, brute_feature_expectations,
+                                  brute_log_partition, brute_visitation, trajectory_features)
+
+SHAPES = [(1, 1), (1, 3), (3, 1), (2, 2), (2, 4), (3, 3), (4, 2)]
+
+
+def random_mdp(rng: np.random.Generator, height: int, width: int, d: int, horizon: int) -> M.GridMDP:
+    features = rng.normal(size=(height, width, d))
+    start = (int(rng.integers(height)), int(rng.integers(width)))
+    return M.GridMDP(features, start, horizon)
+
+
+def rel_close(a: np.ndarray, b: np.ndarray, rtol: float = 1e-9) -> bool:
+    return bool(np.all(np.abs(a - b) <= rtol * np.maximum(1.0, np.abs(b))))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_log_partition_and_expectations_match_enumeration(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    height, width = SHAPES[seed % len(SHAPES)]
+    horizon = 1 + seed % 5
+    mdp = random_mdp(rng, height, width, d=3, horizon=horizon)
+    # Includes weights so large that exp(w . phi) overflows float64 in a naive implementation.
+    weights = np.concatenate([rng.normal(size=(4, 3)), 300.0 * rng.normal(size=(2, 3)),
+                              np.zeros((1, 3))])
+    assert rel_close(M.log_partition(mdp, weights), brute_log_partition(mdp, weights))
+    assert rel_close(M.feature_expectations(mdp, weights), brute_feature_expectations(mdp, weights))
+    assert rel_close(M.expected_visitation(mdp, weights), brute_visitation(mdp, weights))
+    log_z, phi = M.log_partition_and_feature_expectations(mdp, weights)
+    assert rel_close(log_z, brute_log_partition(mdp, weights))
+    assert rel_close(phi, brute_feature_expectations(mdp, weights))
+
+
+@settings(max_examples=60, deadline=None)
+@given(height=st.integers(1, 3), width=st.integers(1, 4), horizon=st.integers(1, 4),
+       scale=st.sampled_from([0.1, 1.0, 30.0, 1e3]), seed=st.integers(0, 2**31 - 1))
+def test_property_matches_enumeration(height: int, width: int, horizon: int, scale: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    mdp = random_mdp(rng, height, width, d=2, horizon=horizon)
+    weights = scale * rng.normal(size=(3, 2))
+    assert rel_close(M.log_partition(mdp, weights), brute_log_partition(mdp, weights))
+    assert rel_close(M.feature_expectations(mdp, weights), brute_feature_expectations(mdp, weights), 1e-8)
+
+
+def test_zero_weights_count_trajectories() -> None:
+    # With w = 0 every trajectory has weight 1: log Z is the log of their number.
+    mdp = M.GridMDP(np.ones((3, 3, 1)), (1, 1), 3)
+    n = len(all_trajectories(mdp))
+    assert np.isclose(M.log_partition(mdp, np.zeros((1, 1)))[0], np.log(n))
+    # Hand count for the centre of a 3x3 grid after one move: stay + 4 neighbours.
+    assert len(all_trajectories(M.GridMDP(np.ones((3, 3, 1)), (1, 1), 1))) == 5
+    assert len(all_trajectories(M.GridMDP(np.ones((3, 3, 1)), (0, 0), 1))) == 3
+
+
+def test_visitation_sums_to_horizon_plus_one() -> None:
+    rng = np.random.default_rng(0)
+    mdp = random_mdp(rng, 6, 7, d=4, horizon=9)
+    visits = M.expected_visitation(mdp, 5 * rng.normal(size=(8, 4)))
+    assert np.allclose(visits.sum(axis=(1, 2)), mdp.horizon + 1)
+    assert np.all(visits >= 0)
+
+
+def test_feature_expectations_is_gradient_of_log_partition() -> None:
+    rng = np.random.default_rng(1)
+    mdp = random_mdp(rng, 5, 4, d=3, horizon=6)
+    w = rng.normal(size=(1, 3))
+    eps = 1e-6
+    numeric = np.array([(M.log_partition(mdp, w + eps * e) - M.log_partition(mdp, w - eps * e))[0] / (2 * eps)
+                        for e in np.eye(3)[:, None, :]])
+    assert np.allclose(M.feature_expectations(mdp, w)[0], numeric, rtol=1e-6, atol=1e-6)
+
+
+def test_batch_equals_one_at_a_time() -> None:
+    rng = np.random.default_rng(2)
+    mdp = random_mdp(rng, 4, 5, d=3, horizon=5)
+    weights = rng.normal(size=(6, 3))
+    batched = M.feature_expectations(mdp, weights)
+    single = np.concatenate([M.feature_expectations(mdp, w[None]) for w in weights])
+    assert np.allclose(batched, single, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_optimal_path_matches_enumeration(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    height, width = SHAPES[seed % len(SHAPES)]
+    mdp = random_mdp(rng, height, width, d=1, horizon=1 + seed % 5)
+    rewards = rng.normal(size=(height, width))
+    cells, value = M.optimal_path(mdp, rewards)
+    trajectories = all_trajectories(mdp)
+    best = rewards.ravel()[trajectories].sum(axis=1).max()
+    assert abs(value - best) <= 1e-9 * max(1.0, abs(best))
+    M.validate_path(mdp, cells)
+    assert np.isclose(sum(rewards[r, c] for r, c in cells), value)
+
+
+def test_optimal_path_stays_when_indifferent_and_avoids_forbidden_cells() -> None:
+    mdp = M.GridMDP(np.zeros((3, 3, 1)), (1, 1), 4)
+    cells, value = M.optimal_path(mdp, np.zeros((3, 3)))
+    assert cells == [(1, 1)] * 5 and value == 0.0
+    rewards = np.zeros((3, 3))
+    rewards[1, 1] = -np.inf  # forbidden cell: must leave at once, then never return
+    rewards[2, 2] = 1.0
+    cells, value = M.optimal_path(mdp, rewards)
+    assert value == -np.inf or cells[1:].count((1, 1)) == 0
+
+
+def test_path_features_and_return() -> None:
+    features = np.arange(2 * 3 * 2, dtype=float).reshape(2, 3, 2)
+    mdp = M.GridMDP(features, (0, 0), 2)
+    cells = [(0, 0), (0, 1), (1, 1)]
+    assert np.array_equal(M.path_features(mdp, cells), features[0, 0] + features[0, 1] + features[1, 1])
+    assert np.allclose(M.path_return(mdp, cells, np.array([[1.0, 0.0]])), [0 + 2 + 8])
+    trajectories = all_trajectories(mdp)
+    phi = trajectory_features(mdp, trajectories)
+    assert any(np.array_equal(p, M.path_features(mdp, cells)) for p in phi)
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(features=np.zeros((3, 3)), start=(0, 0), horizon=2), "features"),
+    (dict(features=np.full((2, 2, 1), np.nan), start=(0, 0), horizon=2), "features"),
+    (dict(features=np.zeros((2, 2, 1)), start=(2, 0), horizon=2), "start"),
+    (dict(features=np.zeros((2, 2, 1)), start=(0, -1), horizon=2), "start"),
+    (dict(features=np.zeros((2, 2, 1)), start=(0, 0), horizon=0), "horizon"),
+    (dict(features=np.zeros((2, 2, 1)), start=(0, 0), horizon=1.5), "horizon"),
+])
+def test_bad_input_names_the_argument(kwargs: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=field):
+        M.GridMDP(**kwargs)
+
+
+def test_bad_weights_and_paths_name_the_argument() -> None:
+    mdp = M.GridMDP(np.zeros((2, 2, 3)), (0, 0), 2)
+    with pytest.raises(ValueError, match="weights"):
+        M.log_partition(mdp, np.zeros(3))
+    with pytest.raises(ValueError, match="weights"):
+        M.feature_expectations(mdp, np.full((1, 3), np.nan))
+    with pytest.raises(ValueError, match="cells"):
+        M.validate_path(mdp, [(0, 0), (1, 1), (1, 1)])
+    with pytest.raises(ValueError, match="cells"):
+        M.validate_path(mdp, [(0, 1), (1, 1), (1, 1)])

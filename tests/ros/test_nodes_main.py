@@ -1,0 +1,126 @@
+"""Process life cycle of the nodes (ird_ros.node_main): clean exit 0 on SIGINT and SIGTERM, also
+when started with SIGINT ignored (``cmd &`` from a non-interactive shell), with the inference
+worker processes gone, even in the middle of a long inference."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Iterator
+
+import pytest
+
+from ird_core import lavaland
+from ird_msgs.srv import InferReward
+from ird_ros import conversions as conv
+from ird_ros import graph, names
+from ird_ros.testing import DomainLease, call_service, spin_until, wait_for_node, wait_for_service
+
+ROOT = Path(__file__).resolve().parents[2]
+PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
+
+
+class Background:
+    """``python -m module`` started like ``cmd &`` from a script: SIGINT ignored, own process group."""
+
+    def __init__(self, module: str, domain: DomainLease, *extra: str) -> None:
+        self.lines: list[str] = []
+        self.ready = threading.Event()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", module, "--ros-args", "--params-file", PARAMS, *extra],
+            env=domain.env(), cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            text=True, preexec_fn=lambda: (signal.signal(signal.SIGINT, signal.SIG_IGN), os.setpgrp()))
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.append(line.rstrip())
+            if " ready" in line:
+                self.ready.set()
+
+    def output(self) -> str:
+        return "\n".join(self.lines[-50:])
+
+    def children(self) -> list[int]:
+        pids = []
+        for task in Path(f"/proc/{self.proc.pid}/task").iterdir():
+            pids += [int(p) for p in (task / "children").read_text().split()]
+        return pids
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+
+
+@pytest.fixture
+def started() -> Iterator[list[Background]]:
+    procs: list[Background] = []
+    yield procs
+    for p in procs:
+        p.kill()
+
+
+def _all_exit(pids: list[int], timeout: float = 10.0) -> bool:
+    """Wait (on pidfds, no polling) until every process in ``pids`` has terminated."""
+    deadline = time.monotonic() + timeout
+    for pid in pids:
+        try:
+            fd = os.pidfd_open(pid)
+        except ProcessLookupError:
+            continue  # gone already
+        try:
+            ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+            if not ready:
+                return False
+        finally:
+            os.close(fd)
+    return True
+
+
+@pytest.mark.parametrize("spec", graph.NODES, ids=[s.name for s in graph.NODES])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_node_exits_0_on_signal_even_with_sigint_ignored(spec: graph.NodeSpec, sig: int, ros_domain: DomainLease,
+                                                          ros_node: Any, started: list[Background]) -> None:
+    bg = Background(spec.module, ros_domain, "-p", "height:=5", "-p", "width:=5") if spec.name == "world" \
+        else Background(spec.module, ros_domain)
+    started.append(bg)
+    assert bg.ready.wait(60.0), bg.output()
+    wait_for_node(ros_node, spec.name, timeout=30.0)
+    workers = bg.children()
+    assert (len(workers) >= 1) == (spec.name in ("inference", "planner")), workers  # worker processes
+    bg.proc.send_signal(sig)
+    assert bg.proc.wait(timeout=15.0) == 0, bg.output()
+    assert _all_exit(workers), workers
+
+
+def test_sigterm_during_a_long_inference(ros_domain: DomainLease, ros_node: Any, started: list[Background]) -> None:
+    bg = Background("ird_ros.inference", ros_domain)
+    started.append(bg)
+    assert bg.ready.wait(60.0), bg.output()
+    client = ros_node.create_client(InferReward, names.SRV_INFER)
+    wait_for_service(ros_node, client, timeout=30.0)
+    inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30)
+    req = InferReward.Request(start_row=inst.train_start[0], start_col=inst.train_start[1],
+                              horizon=inst.train_horizon, beta=1.0, method="maxent_z", num_samples=100000, seed=1)
+    req.training_map = conv.feature_grid_to_msg(inst.train_features, inst.feature_names)
+    req.proxy_weights = conv.weights_to_flat(inst.proxy_weights)
+    future = client.call_async(req)
+    t0 = time.monotonic()
+    spin_until(ros_node, lambda: time.monotonic() - t0 > 1.0, timeout=5.0, what="the inference to be under way")
+    workers = bg.children()
+    assert workers and not future.done()
+    t0 = time.monotonic()
+    bg.proc.send_signal(signal.SIGTERM)
+    assert bg.proc.wait(timeout=15.0) == 0, bg.output()
+    took = time.monotonic() - t0
+    assert took < 5.0, took
+    assert _all_exit(workers), workers
+    ros_node.destroy_client(client)

@@ -1,0 +1,318 @@
+"""The planner node over real DDS: plans equal ird_core.planning.plan_path, /plan and
+/ird/plan_info carry them, defaults come from the latest world/perception/posterior, the risk map
+follows the posterior, replan_on_posterior plans by itself, and bad requests are named."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+import pytest
+
+from ird_core import lavaland, planning
+from ird_core.mdp import GridMDP
+from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
+from ird_msgs.srv import GenerateWorld, PlanPath
+from nav_msgs.msg import OccupancyGrid, Path as PathMsg
+from ird_ros import conversions as conv
+from ird_ros import names
+from ird_ros.testing import (
+    DomainLease,
+    NodeProcess,
+    call_service,
+    spawn_node_process,
+    spin_until,
+    wait_for_service,
+    wait_for_subscribers,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
+H, W, T, OBS = 7, 8, 9, 8
+SEED = 13
+
+
+@pytest.fixture(scope="module")
+def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
+    world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
+                  "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
+                  "-p", f"obs_dim:={OBS}", "-p", "resolution:=0.25"]
+    perception_args = ["-m", "ird_ros.perception", "--ros-args", "--params-file", PARAMS]
+    planner_args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS,
+                    "-p", "replan_on_posterior:=true", "-p", "default_mode:=per_step",
+                    "-p", "default_baseline:=training_features"]
+    with spawn_node_process(world_args, domain=ros_domain, name="world", ready_text="world ready") as world, \
+            spawn_node_process(perception_args, domain=ros_domain, name="perception",
+                               ready_text="perception ready") as perception, \
+            spawn_node_process(planner_args, domain=ros_domain, name="planner", ready_text="planner ready") as planner:
+        yield [world, perception, planner]
+    for proc in (world, perception, planner):
+        assert proc.returncode == 0, proc.describe()
+
+
+class Probe:
+    """Latched subscriptions to the planner's outputs, kept for the whole module."""
+
+    def __init__(self, node: Any) -> None:
+        qos = names.latched_qos()
+        self.node = node
+        self.plans: list[PathMsg] = []
+        self.infos: list[PlanInfo] = []
+        self.risk: list[OccupancyGrid] = []
+        self.proxies: list[ProxyReward] = []
+        self.terrain_features: list[FeatureGrid] = []
+        node.create_subscription(PathMsg, names.TOPIC_PLAN, self.plans.append, qos)
+        node.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self.infos.append, qos)
+        node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self.risk.append, qos)
+        node.create_subscription(ProxyReward, names.TOPIC_PROXY, self.proxies.append, qos)
+        node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, self.terrain_features.append, qos)
+        self.plan_client = node.create_client(PlanPath, names.SRV_PLAN)
+        self.generate_client = node.create_client(GenerateWorld, names.SRV_GENERATE)
+        self.posterior_pub = node.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, qos)
+
+
+@pytest.fixture(scope="module")
+def probe(ros_ctx: Any, graph: list[NodeProcess]) -> Iterator[Probe]:
+    import rclpy
+
+    node = rclpy.create_node("planner_probe", context=ros_ctx)
+    p = Probe(node)
+    wait_for_service(node, p.plan_client, processes=graph)
+    wait_for_service(node, p.generate_client, processes=graph)
+    yield p
+    node.destroy_node()
+
+
+def stamp_str(stamp: Any) -> str:
+    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+
+
+def plan(probe: Probe, graph: list[NodeProcess], **fields: Any) -> PlanPath.Response:
+    req = PlanPath.Request()
+    for key, value in fields.items():
+        setattr(req, key, value)
+    return call_service(probe.node, probe.plan_client, req, processes=graph, timeout=60.0)
+
+
+def plan_when(probe: Probe, graph: list[NodeProcess], ready: Callable[[str], bool], **fields: Any) -> PlanPath.Response:
+    """Call /ird/plan until the response says it used the expected inputs (the planner gets
+    latched topics asynchronously): no sleeping, each call is a real plan."""
+    last: list[PlanPath.Response] = []
+
+    def attempt() -> bool:
+        response = plan(probe, graph, **fields)
+        last.append(response)
+        return response.success and ready(response.message)
+
+    spin_until(probe.node, attempt, timeout=30.0, what="a plan on the expected inputs", processes=graph)
+    return last[-1]
+
+
+def generation(probe: Probe, graph: list[NodeProcess], condition: str, seed: int) -> tuple[ProxyReward, Any]:
+    """Generate a world; wait for its proxy and perception's /terrain/features of it."""
+    response = call_service(probe.node, probe.generate_client, GenerateWorld.Request(condition=condition, seed=seed),
+                            processes=graph)
+    assert response.success, response.message
+
+    def arrived() -> bool:
+        if not probe.proxies or (probe.proxies[-1].condition, probe.proxies[-1].seed) != (condition, seed):
+            return False
+        return any(m.header.stamp == probe.proxies[-1].header.stamp for m in probe.terrain_features)
+
+    spin_until(probe.node, arrived, timeout=30.0, what=f"world {condition}/{seed} perceived", processes=graph)
+    return probe.proxies[-1], probe.proxies[-1].header.stamp
+
+
+def f32(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a).astype(np.float32).astype(np.float64)
+
+
+def check_published(probe: Probe, graph: list[NodeProcess], response: PlanPath.Response, label: str,
+                    resolution: float, origin: tuple[float, float] = (0.0, 0.0)) -> PlanInfo:
+    """/plan and /ird/plan_info of this response: same stamp, same cells, the label."""
+    stamp = response.path.header.stamp
+    spin_until(probe.node, lambda: any(p.header.stamp == stamp for p in probe.plans)
+               and any(i.header.stamp == stamp for i in probe.infos), timeout=20.0,
+               what="/plan and /ird/plan_info of the response", processes=graph)
+    path = next(p for p in probe.plans if p.header.stamp == stamp)
+    info = next(i for i in probe.infos if i.header.stamp == stamp)
+    assert path == response.path
+    cells = conv.path_to_cells(path, resolution=resolution, origin=origin)
+    assert cells == list(zip(response.rows, response.cols))
+    assert (info.label, list(info.rows), list(info.cols)) == (label, list(response.rows), list(response.cols))
+    assert info.objective == response.objective
+    assert path.header.frame_id == "map" and all(p.header.frame_id == "map" for p in path.poses)
+    return info
+
+
+CASES = [("literal", "none", 1), ("literal", "log_z", 1), ("per_step", "none", 6), ("per_step", "initial_state", 6),
+         ("per_step", "training_features", 6), ("trajectory", "log_z", 5), ("trajectory", "none", 4)]
+
+
+@pytest.mark.parametrize("mode,baseline,k", CASES)
+def test_explicit_plan_equals_plan_path(mode: str, baseline: str, k: int, probe: Probe,
+                                        graph: list[NodeProcess]) -> None:
+    rng = np.random.default_rng(hash((mode, baseline)) % 2**32)
+    features = rng.normal(size=(5, 6, 3))
+    weights = rng.normal(size=(k, 3))
+    reference = rng.normal(size=3)
+    label = f"test_{mode}_{baseline}"
+    response = plan(probe, graph, map=conv.feature_grid_to_msg(features, ["a", "b", "c"], resolution=0.5,
+                                                                 origin=(1.0, -2.0)),
+                    start_row=2, start_col=3, horizon=7, mode=mode, baseline=baseline,
+                    weights=weights.reshape(-1).tolist(), reference_features=reference.tolist(), label=label)
+    assert response.success, response.message
+    expected = planning.plan_path(GridMDP(f32(features), (2, 3), 7), weights, mode, baseline, reference)
+    assert list(zip(response.rows, response.cols)) == list(expected.cells)
+    assert response.objective == expected.objective
+    assert len(response.path.poses) == 8
+    x, y = conv.cell_center(2, 3, 0.5, (1.0, -2.0))
+    assert (response.path.poses[0].pose.position.x, response.path.poses[0].pose.position.y) == (x, y)
+    info = check_published(probe, graph, response, label, 0.5, (1.0, -2.0))
+    assert (info.mode, info.baseline) == (mode, baseline)
+
+
+def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) -> None:
+    proxy, stamp = generation(probe, graph, "side_effects", SEED + 1)
+    inst = lavaland.make_instance("side_effects", SEED + 1, size=(H, W), horizon=T, obs_dim=OBS)
+    # A posterior in the hypothesis space, published the way the inference node does (latched).
+    samples = np.random.default_rng(0).normal(size=(6, 4))
+    post = conv.PosteriorData(samples=samples, feature_names=inst.feature_names, proxy_weights=inst.proxy_weights,
+                              method="maxent_z", beta=1.0, prior_sigma=1.0, acceptance_rate=0.5, r_hat_max=1.0,
+                              ess_min=10.0, num_chains=2, seed=0, converged=True)
+    msg = conv.posterior_to_msg(post, feature_names=inst.feature_names, proxy_weights=inst.proxy_weights,
+                                stamp=probe.node.get_clock().now().to_msg())
+    n_plans = len(probe.plans)
+    wait_for_subscribers(probe.node, probe.posterior_pub, processes=graph)
+    probe.posterior_pub.publish(msg)
+
+    # The risk map of these samples on the perceived test map.
+    expected_risk = planning.risk_map(f32(inst.test_features), samples)
+    spin_until(probe.node, lambda: any(np.array_equal(np.asarray(r.data, np.int8).reshape(H, W), expected_risk)
+                                       for r in probe.risk), timeout=20.0, what="the risk map", processes=graph)
+    risk = next(r for r in probe.risk if np.array_equal(np.asarray(r.data, np.int8).reshape(H, W), expected_risk))
+    assert (risk.info.width, risk.info.height, risk.info.resolution) == (W, H, 0.25)
+    assert risk.header.frame_id == "map" and expected_risk.max() == 100
+
+    # Defaults: weights = the posterior, map = /world/test_features, f_ref from the proxy.
+    rounded = lavaland.LavalandInstance(**{**{f: getattr(inst, f) for f in inst.__dataclass_fields__},
+                                           "train_features": f32(inst.train_features),
+                                           "proxy_train_features": f32(inst.proxy_train_features)})
+    f_ref = lavaland.proxy_feature_expectations(rounded) / (T + 1)
+    mdp = GridMDP(f32(inst.test_features), inst.test_start, T)
+    expected = planning.plan_path(mdp, samples, "per_step", "training_features", f_ref)
+    gen = stamp_str(stamp)
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_str(msg.header.stamp) in m,
+                         start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
+                         mode="per_step", baseline="training_features")
+    assert f"map={names.TOPIC_TEST_FEATURES}@{gen}" in response.message
+    assert list(zip(response.rows, response.cols)) == list(expected.cells)
+    assert math.isclose(response.objective, expected.objective, rel_tol=1e-9, abs_tol=1e-9)
+    check_published(probe, graph, response, "ird_per_step_training_features", 0.25)
+
+    # A map whose layers are not the posterior's is refused, naming the map's layers.
+    bad = plan(probe, graph, map=conv.feature_grid_to_msg(np.zeros((5, 6, 3)), ["a", "b", "c"]), start_row=1,
+               start_col=1, horizon=4, mode="per_step", baseline="none")
+    assert not bad.success and bad.message.startswith("map.layers:"), bad.message
+
+    # replan_on_posterior: the planner planned on its own when the posterior arrived.
+    spin_until(probe.node, lambda: any(i.label == "ird_per_step_training_features"
+                                       and list(zip(i.rows, i.cols)) == list(expected.cells)
+                                       for i in probe.infos), timeout=20.0, what="the replan", processes=graph)
+    assert len(probe.plans) > n_plans
+
+
+def test_literal_default_uses_the_classifier_features(probe: Probe, graph: list[NodeProcess]) -> None:
+    proxy, stamp = generation(probe, graph, "latent_classifier", SEED)
+    inst = lavaland.make_instance("latent_classifier", SEED, size=(H, W), horizon=T, obs_dim=OBS)
+    perceived = conv.feature_grid_from_msg(next(m for m in probe.terrain_features if m.header.stamp == stamp))
+    assert perceived.layers == inst.proxy_feature_names
+    gen = stamp_str(stamp)
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 2,
+                         start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
+                         mode="literal", baseline="none")
+    assert f"map={names.TOPIC_TERRAIN_FEATURES}@{gen}" in response.message
+    assert f"weights={names.TOPIC_PROXY}@{gen}" in response.message
+    expected = planning.plan_path(GridMDP(perceived.features.astype(np.float64), inst.test_start, T),
+                                  inst.proxy_weights[None], "literal", "none")
+    assert list(zip(response.rows, response.cols)) == list(expected.cells)
+    assert response.objective == expected.objective
+    check_published(probe, graph, response, "literal", 0.25)
+
+
+BAD: list[tuple[str, dict[str, Any], str]] = [
+    ("mode unknown", dict(mode="cautious"), "mode"),
+    ("baseline unknown", dict(baseline="mean"), "baseline"),
+    ("horizon 0", dict(horizon=0), "horizon"),
+    ("horizon huge", dict(horizon=2**32 - 1), "horizon"),
+    ("start_row off", dict(start_row=5), "start_row"),
+    ("start_col off", dict(start_col=6), "start_col"),
+    ("weights NaN", dict(weights=[0.1, math.nan, 0.2]), "weights"),
+    ("weights not a multiple of d", dict(weights=[0.1, 0.2, 0.3, 0.4]), "weights"),
+    ("literal with two vectors", dict(mode="literal", weights=[0.1] * 6), "weights"),
+    ("reference wrong length", dict(baseline="training_features", reference_features=[1.0, 2.0]), "reference_features"),
+    ("reference NaN", dict(baseline="training_features", reference_features=[1.0, math.inf, 2.0]),
+     "reference_features"),
+    ("map layers empty", dict(map_layers=[]), "map.layers"),
+    ("map short data", dict(map_truncate=True), "map.data"),
+    ("map NaN", dict(map_nan=True), "map.data"),
+]
+
+
+@pytest.mark.parametrize("case,change,field", BAD, ids=[b[0] for b in BAD])
+def test_bad_requests_are_named(case: str, change: dict[str, Any], field: str, probe: Probe,
+                                graph: list[NodeProcess]) -> None:
+    change = dict(change)
+    fields: dict[str, Any] = dict(start_row=1, start_col=1, horizon=4, mode="per_step", baseline="none",
+                                  weights=[0.1, 0.2, 0.3] * 2)
+    grid = conv.feature_grid_to_msg(np.zeros((5, 6, 3)), ["a", "b", "c"])
+    if "map_layers" in change:
+        grid.layers = change.pop("map_layers")
+    if change.pop("map_truncate", False):
+        grid.data = grid.data[:-1]
+    if change.pop("map_nan", False):
+        grid.data[7] = math.nan
+    fields["map"] = grid
+    fields.update(change)
+    response = plan(probe, graph, **fields)
+    assert not response.success, case
+    assert response.message.startswith(field + ":") or response.message.startswith(field + "."), response.message
+    assert len(response.path.poses) == 0
+
+
+def test_plan_without_inputs_is_named() -> None:
+    """A planner alone in its own domain (no world, no posterior) names what it lacks, and keeps
+    serving."""
+    import rclpy
+
+    from ird_ros.testing import lease_domain, ros_context
+
+    args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS]
+    with lease_domain() as lease, ros_context(lease) as ctx, \
+            spawn_node_process(args, domain=lease, name="lonely_planner", ready_text="planner ready") as proc:
+        node = rclpy.create_node("lonely_probe", context=ctx)
+        try:
+            client = node.create_client(PlanPath, names.SRV_PLAN)
+            wait_for_service(node, client, processes=[proc])
+            for mode, baseline, weights, field in (
+                ("per_step", "none", [], "weights"),
+                ("literal", "none", [], "weights"),
+                ("per_step", "none", [0.1, 0.2], "map"),
+                ("per_step", "training_features", [0.1, 0.2, 0.3], "reference_features"),
+            ):
+                req = PlanPath.Request(start_row=0, start_col=0, horizon=3, mode=mode, baseline=baseline,
+                                       weights=weights)
+                if field == "reference_features":
+                    req.map = conv.feature_grid_to_msg(np.zeros((2, 2, 3)), ["a", "b", "c"])
+                response = call_service(node, client, req, processes=[proc])
+                assert not response.success
+                assert response.message.startswith(field + ":"), response.message
+            req = PlanPath.Request(map=conv.feature_grid_to_msg(np.zeros((2, 2, 3)), ["a", "b", "c"]), horizon=3,
+                                   mode="per_step", baseline="none", weights=[0.1, 0.2, 0.3])
+            assert call_service(node, client, req, processes=[proc]).success
+        finally:
+            node.destroy_node()
+        proc.stop()
+        assert proc.returncode == 0, proc.describe()
