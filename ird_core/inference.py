@@ -16,33 +16,59 @@ feature counts in the training MDP ``M~`` under the MaxEnt agent. With a Gaussia
 Sample-Z gradient. ``d/dw [w . phi~(w)] = phi~(w) + H(w) w`` with ``H(w) = Cov_w[phi]`` (the
 Hessian of ``log Z``). ``H(w) w`` is the derivative of ``phi~(t w)`` in ``t`` at ``t = 1``; it is
 computed by a forward difference along the ray, ``(phi~((1 + eps) w) - phi~(w)) / eps``
-(``eps = 1e-6``), so the value and the gradient come from ONE batched MDP call on ``2K``
-weights. MALA remains exact with this (deterministic) field, only its efficiency depends on it.
+(``eps = 1e-6``, agrees with central differences of the log posterior to ~1e-6 relative), so
+the value and the gradient come from ONE batched MDP call on ``2K`` weights. HMC stays exact
+with this deterministic field; dropping the ``H(w) w`` term (half the cost) is also exact but
+shrank the stable HMC step ten-fold on latent_raw, so the term is kept.
+
+Posterior geometry (measured on latent_raw, d = 50, beta = 1). Both posteriors are a Gaussian
+prior times a likelihood that is nearly piecewise linear: at typical posterior weights the
+MaxEnt trajectory distribution is close to deterministic, so ``log Z`` is close to a max over
+trajectories and the log posterior has sharp creases (curvature up to ~100x that at the mode,
+in preconditioned units) where the preferred trajectory changes. Sample-Z is stiffer still: its
+``logsumexp`` over the proxies' feature counts (norms ~100-250) is a near-hard max, and its
+posterior is up to ~9x wider (in sd) than the Laplace approximation at its mode. The creases cap
+the stable step size (~0.05 preconditioned units for MaxEnt-Z, ~0.02 for Sample-Z), so MALA and
+RWM mix far too slowly in 50-d; HMC's ballistic trajectories do not.
 
 Sampler (``sample_posterior``), defaults chosen on the 15x15, T = 30, d = 50 ``latent_raw``
 benchmark (``scripts/bench_inference.py``):
 
 1. A Laplace approximation: the MAP by damped Newton from ``w = 0``, each iteration one batched
    call for the gradient at ``w`` and at ``w + delta e_j`` (forward-difference Hessian, ``d + 1``
-   weights) and one for a batched line search. The inverse of the negative Hessian at the MAP
-   (eigenvalues floored) is the initial preconditioner: the posterior is far from isotropic
-   (data-dominated directions have standard deviations ~ ``1 / sqrt(beta Var[phi])``, the
-   others ~ ``sigma``), and a dense 50-d covariance cannot be learnt from short warm-ups alone.
-2. ``num_chains`` chains start from the PRIOR ``N(0, sigma^2 I)``, overdispersed relative to the
-   posterior (the posterior is the prior times a log-concave likelihood for MaxEnt-Z, hence
-   narrower), so split R-hat compares chains that had to forget genuinely different starts.
-3. MALA for both methods, warm-up with dual averaging of a shared step size (target acceptance
-   0.574) and windowed re-estimation of the dense preconditioner from pooled chain draws,
-   shrunk towards the current one (see ``ird_core.mcmc``); everything frozen after warm-up.
+   weights) and one batched line search. The inverse negative Hessian at the MAP (eigenvalues
+   floored) is the initial preconditioner: posterior standard deviations span ~0.02 to ~1 across
+   directions, and a dense 50-d metric cannot be learnt from scratch in a short warm-up.
+2. ``num_chains`` (16) chains start at ``mode + 2 L z`` (``L L^T`` the Laplace covariance), i.e.
+   overdispersed relative to the Laplace approximation, in the spirit of Gelman & Rubin (1992).
+   Starting from the prior ``N(0, sigma^2 I)`` (``init="prior"``, available) is more
+   conservative, but in 50-d the prior mass is hundreds of nats away from the posterior and the
+   chains need far longer warm-ups to get there. R-hat is computed on post-warm-up draws only,
+   rank-normalised and folded, so chains that disagree in location or in scale are both caught.
+3. HMC (``kernel="hmc"``; ``"mala"`` and ``"rwm"`` are available) with a dense metric: a shared
+   step size adapted by dual averaging towards acceptance 0.8 (chain-averaged acceptance
+   probability), trajectories of 1.5 preconditioned units (at most ``DEFAULT_MAX_LEAPFROG``
+   leapfrog steps, per-chain step jitter +-10%), and Stan-style windows that re-estimate the
+   metric from the draws of all chains pooled, shrunk towards the current metric with
+   Ledoit-Wolf weights (see ``ird_core.mcmc``). Warm-up trajectories are capped at 8 leapfrog
+   steps until the final buffer, which tunes the step at the full trajectory length. Everything
+   is frozen after warm-up, so the retained draws come from one fixed, valid kernel.
+   Per-method defaults: MaxEnt-Z 60 warm-up iterations, >= 60 iterations per chain after
+   warm-up, <= 32 leapfrog steps; Sample-Z 150, >= 100 and <= 64 (``thin=None`` picks the
+   thinning that gives each chain at least that many iterations).
 4. Draws are thinned, pooled draw-major (first retained draw of every chain, then the second,
    ...) and cut to exactly ``num_samples``; diagnostics use every retained draw: rank-normalised
    split R-hat (max of bulk and folded, Vehtari et al. 2021) and bulk ESS.
 
-Default number of proxy samples for Sample-Z: ``DEFAULT_NUM_PROXY_SAMPLES = 200``. Their
-feature expectations cost one batched MDP pass once (about 60 ms on 15x15, T = 30), and each
-MCMC step only adds a ``(C, d) x (d, N)`` product, so ``N`` is cheap; 200 is where, on the
-latent_raw benchmark, log-posterior differences between posterior draws move by less than
-about a tenth of a nat when ``N`` is doubled (``scripts/bench_inference.py --proxy-study``).
+Default number of proxy samples for Sample-Z: ``DEFAULT_NUM_PROXY_SAMPLES = 1000``. Their
+feature expectations cost one batched pass once (about 0.4 s on 15x15, T = 30), and each MCMC
+step only adds a ``(K, d) x (d, N)`` product and a softmax, negligible next to the MDP pass, so
+``N`` is cheap. It matters: the Sample-Z normaliser is a log-mean-exp of near-max terms and
+converges slowly. On latent_raw (seed 0, beta 1) the rms error of log-posterior differences
+between 256 posterior-typical weights, against N = 6400 proxies, is 6.0 / 4.1 / 3.4 / 2.5 / 1.9 /
+0.9 nats for N = 25 / 100 / 200 / 400 / 800 / 1600, for differences whose spread is 8.0 nats
+(``scripts/bench_inference.py --proxy-study``). 1000 keeps the approximation error near 1.5
+nats at well under a second of set-up.
 
 ``beta = 0`` is allowed (the posterior is then the prior); negative beta is an error.
 """
@@ -66,6 +92,9 @@ __all__ = [
     "DEFAULT_WARMUP",
     "DEFAULT_MIN_ITERATIONS",
     "DEFAULT_KERNEL",
+    "DEFAULT_MAX_LEAPFROG",
+    "DEFAULT_TRAJECTORY_LENGTH",
+    "DEFAULT_INIT_SCALE",
     "R_HAT_CONVERGED",
     "log_prior",
     "log_prior_grad",
@@ -81,11 +110,12 @@ __all__ = [
     "log_posterior_grad",
     "laplace_approximation",
     "Posterior",
+    "pool_draws",
     "sample_posterior",
 ]
 
 METHODS: tuple[str, ...] = ("maxent_z", "sample_z")
-DEFAULT_NUM_PROXY_SAMPLES: int = 200
+DEFAULT_NUM_PROXY_SAMPLES: int = 1000
 DEFAULT_NUM_CHAINS: int = 16
 #: Per-method sampler defaults (see the module docstring): Sample-Z's likelihood has much
 #: stiffer creases (a near-hard max over the proxies' feature counts), so it needs a longer
@@ -240,6 +270,29 @@ def _check_array(name: str, value: object, shape: tuple[int | None, ...]) -> np.
 # The posterior as a batched log density
 # --------------------------------------------------------------------------------------------
 
+#: Working-set budget of one MDP call: the engine keeps ``(T + 1, K, H, W)`` float64 soft values;
+#: beyond ~2 MB (a 2-core EPYC's L2 per core) the time per weight jumps 3-5x (measured on 15x15,
+#: T = 30: K = 32 takes 11 ms, K = 64 takes 50-100 ms), so larger batches are split into chunks.
+_CALL_BYTES: int = 2_000_000
+
+
+def _chunk_size(mdp: GridMDP) -> int:
+    """Weights per MDP call that keep the engine's working set within ``_CALL_BYTES``."""
+    return max(1, _CALL_BYTES // (8 * (mdp.horizon + 1) * mdp.num_states))
+
+
+def _chunked(fn: Callable[[GridMDP, np.ndarray], "np.ndarray | tuple[np.ndarray, ...]"], mdp: GridMDP,
+             weights: np.ndarray):
+    """``fn(mdp, weights)`` evaluated on cache-sized chunks of the batch and concatenated."""
+    size = _chunk_size(mdp)
+    if len(weights) <= size:
+        return fn(mdp, weights)
+    parts = [fn(mdp, weights[lo:lo + size]) for lo in range(0, len(weights), size)]
+    if isinstance(parts[0], tuple):
+        return tuple(np.concatenate(p) for p in zip(*parts))
+    return np.concatenate(parts)
+
+
 
 @dataclass(frozen=True, eq=False)
 class PosteriorModel:
@@ -268,23 +321,25 @@ class PosteriorModel:
     def log_density(self, weights: np.ndarray) -> np.ndarray:
         """Unnormalised log posterior; ``(K, d) -> (K,)``. One batched MDP call."""
         if self.method == "maxent_z":
-            log_z = log_partition(self.train_mdp, weights)
+            log_z = _chunked(log_partition, self.train_mdp, weights)
             like = maxent_z_log_likelihood(weights, self.proxy_features, log_z, self.beta)
         else:
-            own = feature_expectations(self.train_mdp, weights)
+            own = _chunked(feature_expectations, self.train_mdp, weights)
             like = sample_z_log_likelihood(weights, self.proxy_features, own, self.sample_features, self.beta)
         return like + log_prior(weights, self.prior_sigma)
 
     def log_density_and_grad(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Value ``(K,)`` and gradient ``(K, d)`` from one batched MDP call (``2K`` weights for
-        Sample-Z, whose gradient uses a forward difference along the ray)."""
+        Sample-Z, whose gradient uses a forward difference along the ray; batches beyond the
+        cache budget are split into chunks)."""
         if self.method == "maxent_z":
-            log_z, expectations = log_partition_and_feature_expectations(self.train_mdp, weights)
+            log_z, expectations = _chunked(log_partition_and_feature_expectations, self.train_mdp, weights)
             value = maxent_z_log_likelihood(weights, self.proxy_features, log_z, self.beta)
             grad = maxent_z_log_likelihood_grad(self.proxy_features, expectations, self.beta)
         else:
             k = len(weights)
-            both = feature_expectations(self.train_mdp, np.concatenate([weights, (1.0 + _RAY_STEP) * weights]))
+            both = _chunked(feature_expectations, self.train_mdp,
+                            np.concatenate([weights, (1.0 + _RAY_STEP) * weights]))
             own, ray = both[:k], (both[k:] - both[:k]) / _RAY_STEP
             value = sample_z_log_likelihood(weights, self.proxy_features, own, self.sample_features, self.beta)
             grad = sample_z_log_likelihood_grad(weights, self.proxy_features, own, ray, self.sample_features,
@@ -327,7 +382,7 @@ def make_posterior_model(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: fl
     elif method == "sample_z":
         if samples is None:
             samples = proxy_prior_samples(num_proxy_samples, dim, sigma, seed)
-        sample_phi = feature_expectations(train_mdp, samples)
+        sample_phi = _chunked(feature_expectations, train_mdp, samples)
     for array in (phi_proxy, sample_phi):
         if array is not None:
             array.setflags(write=False)
@@ -447,10 +502,12 @@ class Posterior:
         samples: ``(K, d)`` draws, ``K = num_samples``, pooled draw-major over chains.
         method, beta, prior_sigma, proxy_weights ``(d,)``, seed: the inputs.
         acceptance_rate: mean Metropolis acceptance rate after warm-up.
-        r_hat_max: max over coordinates of the rank-normalised split R-hat (bulk and folded).
-        ess_min: min over coordinates of the bulk effective sample size.
-        num_chains, warmup, thin: the sampler settings; ``kernel``: ``"mala"`` or ``"rwm"``.
-        step_size: the frozen MALA/RWM step size (in preconditioned units).
+        r_hat_max: max over coordinates of the rank-normalised split R-hat (bulk and folded),
+            over every post-warm-up iteration of every chain (NaN if fewer than 4 iterations).
+        ess_min: min over coordinates of the bulk effective sample size of those iterations
+            (NaN if fewer than 8).
+        num_chains, warmup, thin: the sampler settings; ``kernel``: ``"hmc"``, ``"mala"`` or ``"rwm"``.
+        step_size: the frozen step size (in preconditioned units).
         r_hat: ``(d,)`` and ess: ``(d,)`` per coordinate.
         mode: ``(d,)`` the MAP of the Laplace approximation (or NaN if none was computed).
         num_proxy_samples: ``N`` for Sample-Z, 0 for MaxEnt-Z.
@@ -525,30 +582,38 @@ def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
         seed: ``>= 0``; seeds the default proxy samples (``proxy_prior_samples(N, d, sigma, seed)``)
             and, through an independent stream, the chains. Same seed, same samples.
         num_chains: chains, run as one batch (``>= 2``).
-        warmup: adaptation steps per chain, discarded (``>= 0``).
-        thin: keep every ``thin``-th step after warm-up; each chain runs
-            ``ceil(num_samples / num_chains) * thin`` steps after warm-up.
-        kernel: ``"mala"`` (default) or ``"rwm"``.
+        warmup: adaptation iterations per chain, discarded (``>= 0``; default per method,
+            ``DEFAULT_WARMUP``).
+        thin: keep every ``thin``-th iteration after warm-up; each chain runs
+            ``ceil(num_samples / num_chains) * thin`` iterations after warm-up. Default: the
+            smallest thinning giving ``DEFAULT_MIN_ITERATIONS[method]`` iterations per chain.
+        kernel: ``"hmc"`` (default), ``"mala"`` or ``"rwm"``.
+        num_proxy_samples: ``N`` for Sample-Z when the proxy samples are drawn here.
+        init: ``"laplace"`` (chains start at ``mode + init_scale * L z``) or ``"prior"``.
+        init_scale: overdispersion of the Laplace start, ``> 0``.
+        max_leapfrog: HMC leapfrog cap (default per method, ``DEFAULT_MAX_LEAPFROG``).
         progress: optional ``progress(step, total)`` callback, once per MCMC step.
     Returns:
         The ``Posterior``. Emits a ``RuntimeWarning`` if ``r_hat_max > 1.1``.
     """
-    model = make_posterior_model(proxy_weights, train_mdp, beta, method, prior_sigma, proxy_samples,
-                                 proxy_features=proxy_features, proxy_sample_features=proxy_sample_features,
-                                 seed=seed, num_proxy_samples=num_proxy_samples)
+    # Cheap checks first, so that a bad request fails before any MDP pass.
+    if not isinstance(method, str) or method not in METHODS:
+        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     num_samples = _check_int("num_samples", num_samples, 1)
     num_chains = _check_int("num_chains", num_chains, 2)
-    warmup = DEFAULT_WARMUP[model.method] if warmup is None else _check_int("warmup", warmup, 0)
+    warmup = DEFAULT_WARMUP[method] if warmup is None else _check_int("warmup", warmup, 0)
     per_chain = -(-num_samples // num_chains)
-    min_iterations = DEFAULT_MIN_ITERATIONS[model.method]
-    thin = max(1, -(-min_iterations // per_chain)) if thin is None else _check_int("thin", thin, 1)
-    max_leapfrog = DEFAULT_MAX_LEAPFROG[model.method] if max_leapfrog is None else \
+    thin = max(1, -(-DEFAULT_MIN_ITERATIONS[method] // per_chain)) if thin is None else _check_int("thin", thin, 1)
+    max_leapfrog = DEFAULT_MAX_LEAPFROG[method] if max_leapfrog is None else \
         _check_int("max_leapfrog", max_leapfrog, 1)
     if init not in ("laplace", "prior"):
         raise ValueError(f"init: expected 'laplace' or 'prior', got {init!r}")
     init_scale = _check_real("init_scale", init_scale, positive=True)
     if kernel not in mcmc.KERNELS:
         raise ValueError(f"kernel: expected one of {mcmc.KERNELS}, got {kernel!r}")
+    model = make_posterior_model(proxy_weights, train_mdp, beta, method, prior_sigma, proxy_samples,
+                                 proxy_features=proxy_features, proxy_sample_features=proxy_sample_features,
+                                 seed=seed, num_proxy_samples=num_proxy_samples)
     proxy = np.array(proxy_weights, dtype=np.float64)
     proxy.setflags(write=False)
     dim = model.dim
@@ -572,19 +637,14 @@ def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
                                 trajectory_length=DEFAULT_TRAJECTORY_LENGTH, max_leapfrog=max_leapfrog,
                                 warmup_max_leapfrog=DEFAULT_WARMUP_MAX_LEAPFROG, progress=progress)
     draws = result.draws
-    if per_chain >= 4:
-        r_hat = np.minimum(mcmc.rank_normalized_r_hat(draws), _R_HAT_CAP)
-        ess = mcmc.bulk_effective_sample_size(draws) if per_chain >= 8 else mcmc.effective_sample_size(draws)
-    else:  # too few draws per chain for split diagnostics
-        r_hat = np.full(dim, np.nan)
-        ess = np.full(dim, np.nan)
+    r_hat = np.minimum(result.r_hat, _R_HAT_CAP)
     r_hat_max = float(np.max(r_hat)) if not np.all(np.isnan(r_hat)) else float("nan")
-    ess_min = float(np.nanmin(ess)) if not np.all(np.isnan(ess)) else float("nan")
+    ess_min = float(np.nanmin(result.ess)) if not np.all(np.isnan(result.ess)) else float("nan")
     posterior = Posterior(
         samples=pool_draws(draws, num_samples), method=method, beta=model.beta, prior_sigma=model.prior_sigma,
         proxy_weights=proxy, acceptance_rate=float(result.acceptance_rate.mean()), r_hat_max=r_hat_max,
         ess_min=ess_min, num_chains=num_chains, seed=seed, warmup=warmup, thin=thin, kernel=kernel,
-        step_size=result.step_size, r_hat=r_hat, ess=ess, mode=mode,
+        step_size=result.step_size, r_hat=r_hat, ess=result.ess, mode=mode,
         num_proxy_samples=0 if model.sample_features is None else len(model.sample_features),
         num_evaluations=result.num_evaluations)
     if not posterior.converged:

@@ -17,11 +17,14 @@ covariance) and ``h`` a step size shared by all chains.
 
 Warm-up (Stan-style windowed adaptation, Hoffman & Gelman 2014 dual averaging):
 
-1. an initial buffer (15% of warm-up) adapts only the step size;
-2. doubling windows (75%): at the end of each window the preconditioner is re-estimated from
-   that window's draws POOLED over all chains (so a 50-d dense covariance is well estimated after
-   a few dozen steps of 32 chains), and the dual averaging restarts from the current step size;
-3. a final buffer (10%) adapts the step size for the final preconditioner.
+1. an initial buffer (``max(15%, 5)`` iterations) adapts only the step size;
+2. doubling windows: at the end of each window the preconditioner is re-estimated from that
+   window's draws POOLED over all chains, shrunk towards the current preconditioner with a
+   Ledoit-Wolf weight computed for the draws' effective sample size, and the dual averaging
+   restarts from the current step size;
+3. a final buffer (``max(10%, 10)`` iterations) adapts the step size for the final metric.
+
+HMC warm-up may use shorter trajectories (``warmup_max_leapfrog``) until the final buffer.
 
 Dual averaging drives the chain-averaged Metropolis acceptance probability towards the kernel's
 target (0.234 RWM, 0.574 MALA, 0.8 HMC). Everything is frozen after warm-up, so the retained
@@ -29,7 +32,8 @@ draws come from a fixed, valid Markov kernel.
 
 Diagnostics: split R-hat (Gelman et al., BDA3, 11.4), its rank-normalised and folded variant
 (Vehtari et al. 2021) and the multi-chain effective sample size with Geyer's initial monotone
-sequence estimator (as in Stan).
+sequence estimator (as in Stan). ``sample_chains`` reports them over every post-warm-up
+iteration, whatever the thinning.
 """
 
 from __future__ import annotations
@@ -343,6 +347,9 @@ class MCMCResult:
         preconditioner: the frozen preconditioner.
         kernel, warmup, thin, num_leapfrog: the settings used (``num_leapfrog`` is 1 unless HMC).
         num_evaluations: batched ``log_density`` calls made, warm-up included.
+        r_hat: ``(d,)`` rank-normalised split R-hat over EVERY post-warm-up iteration (thinning
+            only decides what is stored); NaN with fewer than 4 iterations.
+        ess: ``(d,)`` bulk ESS over every post-warm-up iteration; NaN with fewer than 8.
     """
 
     draws: np.ndarray
@@ -355,6 +362,8 @@ class MCMCResult:
     thin: int
     num_leapfrog: int
     num_evaluations: int
+    r_hat: np.ndarray
+    ess: np.ndarray
 
 
 def _check_int(name: str, value: int, minimum: int) -> int:
@@ -519,6 +528,7 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     draws = np.empty((num_chains, num_draws, dim))
     draw_log_p = np.empty((num_chains, num_draws))
     accepted = np.zeros(num_chains)
+    states = np.empty((num_chains, num_draws * thin, dim))  # every post-warm-up state
 
     for it in range(total):
         in_warmup = it < warmup
@@ -543,6 +553,7 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
                 adapt = DualAveraging.start(adapt.final_step, target, bias=1.0)
         else:
             accepted += accept
+            states[:, it - warmup] = chains.x
             k, r = divmod(it - warmup + 1, thin)
             if r == 0:
                 draws[:, k - 1] = chains.x
@@ -551,10 +562,14 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
             progress(it + 1, total)
 
     final_step = adapt.final_step if warmup > 0 else step0
+    iterations = num_draws * thin
+    r_hat = rank_normalized_r_hat(states) if iterations >= 4 else np.full(dim, np.nan)
+    ess = bulk_effective_sample_size(states) if iterations >= 8 else np.full(dim, np.nan)
     return MCMCResult(draws=draws, log_density=draw_log_p,
                       acceptance_rate=accepted / (num_draws * thin), step_size=final_step,
                       preconditioner=precond, kernel=kernel, warmup=warmup, thin=thin,
-                      num_leapfrog=leapfrog_steps(final_step), num_evaluations=evaluations)
+                      num_leapfrog=leapfrog_steps(final_step), num_evaluations=evaluations,
+                      r_hat=r_hat, ess=ess)
 
 
 # --------------------------------------------------------------------------------------------

@@ -5,8 +5,11 @@ path of ``T + 1`` cells from the start and the exact value of the objective it m
 
 - ``literal``    ``sum_t (w . F[s_t] - b)`` for one weight vector (the proxy); ``K`` must be 1.
 - ``per_step``   ``sum_t min_i (w_i . F[s_t] - b_i)``: a per-cell reward, solved by exact DP.
-- ``trajectory`` ``min_i (w_i . phi(xi) - (T + 1) b_i)``: not an MDP; solved exactly as a
-  mixed-integer program over unit flows in the time-expanded graph with HiGHS.
+- ``trajectory`` ``min_i (w_i . phi(xi) - (T + 1) b_i)``: not an MDP; solved exactly, by default
+  with a branch and bound over the time-expanded graph whose bounds are exact DPs
+  (``"label-bb"``), or as a mixed-integer program over unit flows in that graph with HiGHS
+  (``"milp-highs"``). No relaxation is ever returned as a plan: the LP relaxation only supplies
+  bounds. See :func:`plan_path`.
 
 Per-step reward baselines ``b_i`` (:func:`reward_baselines`):
 
@@ -26,13 +29,14 @@ moves by ``w_i . c``: true for ``initial_state`` (``F[s_0]`` moves by ``c``), fo
 averages move by ``c``). ``none`` is not invariant: the shift moves each sample's reward by a
 different amount and so changes which sample is the minimum.
 
-Exactness of ``trajectory``: see :func:`plan_path`. Everything is vectorised over samples and
-cells; the only Python loops run over time steps.
+Everything is vectorised over samples and cells; Python loops run over time steps, solver
+iterations and memory chunks only.
 """
 
 from __future__ import annotations
 
 import math
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -48,6 +52,7 @@ __all__ = [
     "SOLVERS",
     "STATISTICS",
     "Plan",
+    "PlanningTimeout",
     "reward_baselines",
     "sample_cell_rewards",
     "per_step_reward",
@@ -99,10 +104,12 @@ class Plan:
         objective: the objective of ``mode`` (baseline subtracted) evaluated exactly on ``cells``.
         mode: one of :data:`MODES`.
         baseline: one of :data:`BASELINES`.
-        solver: ``"dp"`` (dynamic programming), ``"dp-bound"`` (a DP path certified optimal for
-            ``trajectory`` by the per-sample DP upper bound, no MILP needed) or ``"milp-highs"``.
-        bound: a proven upper bound on the optimum (equal to ``objective`` for DP; for the MILP
-            the smaller of the per-sample DP bound and HiGHS's dual bound).
+        solver: ``"dp"`` (dynamic programming; ``literal``, ``per_step``), ``"label-bb"`` or
+            ``"milp-highs"`` (``trajectory``, see :func:`plan_path`).
+        bound: a proven upper bound on the optimum: ``objective`` itself once optimality is
+            proven (DP, completed label search; for the MILP the smaller of the DP bounds and
+            HiGHS's dual bound, at least ``objective``). Larger only in
+            :class:`PlanningTimeout`'s plan.
     """
 
     cells: tuple[tuple[int, int], ...]
@@ -111,6 +118,19 @@ class Plan:
     baseline: str
     solver: str
     bound: float = math.nan
+
+
+class PlanningTimeout(RuntimeError):
+    """``plan_path`` ran out of ``time_limit`` before proving optimality.
+
+    Attributes:
+        plan: the best path found so far, its exact objective, and in ``plan.bound`` the best
+            proven upper bound on the optimum (so ``plan.bound - plan.objective`` is the gap).
+    """
+
+    def __init__(self, message: str, plan: "Plan") -> None:
+        super().__init__(message)
+        self.plan = plan
 
 
 # --------------------------------------------------------------------------- validation
@@ -198,7 +218,11 @@ def sample_cell_rewards(
         ``(K, H, W)``.
     """
     w = _check_weights(weights, mdp.num_features)
-    b = reward_baselines(mdp, w, baseline, reference_features)
+    return _shifted_rewards(mdp, w, reward_baselines(mdp, w, baseline, reference_features))
+
+
+def _shifted_rewards(mdp: GridMDP, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(K, H, W)`` rewards ``w_i . F - b_i`` for checked ``w`` ``(K, d)`` and ``b`` ``(K,)``."""
     return np.einsum("hwd,kd->khw", mdp.features, w, optimize=True) - b[:, None, None]
 
 
@@ -222,7 +246,7 @@ def path_objective(
 ) -> float:
     """The objective of ``mode`` evaluated exactly on a legal path.
 
-    ``literal``: ``w . phi - (T + 1) b``; ``per_step``: ``sum_t min_i q_i(s_t)``;
+    ``literal``: ``w . phi - (T + 1) b``; ``per_step``: ``sum_t min_i (w_i . F[s_t] - b_i)``;
     ``trajectory``: ``min_i (w_i . phi - (T + 1) b_i)``.
 
     Args:
@@ -233,13 +257,15 @@ def path_objective(
     w = _check_weights(weights, mdp.num_features)
     if mode == "literal" and len(w) != 1:
         raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
-    path = validate_path(mdp, cells)
-    b = reward_baselines(mdp, w, baseline, reference_features)
+    return _objective(mdp, validate_path(mdp, cells), w, reward_baselines(mdp, w, baseline, reference_features), mode)
+
+
+def _objective(mdp: GridMDP, path: np.ndarray, w: np.ndarray, b: np.ndarray, mode: str) -> float:
+    """:func:`path_objective` for a checked ``(T + 1, 2)`` path, ``w`` ``(K, d)``, ``b`` ``(K,)``."""
+    visited = mdp.features[path[:, 0], path[:, 1]]  # (T+1, d)
     if mode == "per_step":
-        q = np.einsum("td,kd->kt", mdp.features[path[:, 0], path[:, 1]], w) - b[:, None]
-        return float(q.min(axis=0).sum())
-    phi = mdp.features[path[:, 0], path[:, 1]].sum(axis=0)
-    return float(np.min(w @ phi - (mdp.horizon + 1) * b))
+        return float((visited @ w.T - b).min(axis=1).sum())
+    return float(np.min(w @ visited.sum(axis=0) - (mdp.horizon + 1) * b))
 
 
 # --------------------------------------------------------------------------- planning
@@ -257,21 +283,39 @@ def plan_path(
 ) -> Plan:
     """Plan a path maximising the objective of ``mode``.
 
-    ``literal`` and ``per_step`` are single per-cell rewards solved by ``mdp.optimal_path``
-    (ties broken "stay" first).
+    ``literal`` and ``per_step`` are one per-cell reward each, solved by ``mdp.optimal_path``
+    (exact DP, ties broken "stay" first).
 
-    ``trajectory`` is exact. Samples are first reduced without changing the objective: duplicate
-    shifted reward rows are merged and samples dominated on every reachable cell (``q_i >= q_j``
-    everywhere) are dropped. The per-step path and the DP path of the bottleneck sample (the one
-    with the smallest own optimum ``U``) are candidates; ``U`` bounds the objective from above,
-    so a candidate reaching ``U`` is optimal (``solver="dp-bound"``). Otherwise (or when
-    ``solver="milp-highs"`` is requested) a MILP is solved with HiGHS at zero gap: binary edge
-    variables ``x[t, s, move]`` over (time, state) pairs reachable from the start within the
-    horizon, a unit flow out of the start, conservation at every inner (time, state), visit
-    counts ``n[s] = sum of edges into s``, and ``z <= q_i(s_0) + sum_s q_i(s) n[s]`` for every
-    kept sample; ``z`` is bounded below by the best candidate and above by ``U``. The returned
-    path is read off the binaries, checked with ``validate_path`` and its objective recomputed
-    from its cells; the better of it and the candidates is returned.
+    ``trajectory``, ``max_xi min_i f_i(xi)`` with ``f_i(xi) = sum_t q_i(s_t)`` and
+    ``q_i = w_i . F - b_i``, is solved exactly:
+
+    1. Samples that cannot change the minimum are dropped: duplicate ``q_i`` rows, and ``q_i``
+       dominated on every reachable cell by another sample's (``q_j <= q_i``).
+    2. Bounds. Each sample's own DP optimum bounds the objective from above; so does
+       ``max_xi lam . f(xi)`` (one DP) for any ``lam`` on the simplex. The best ``lam`` gives the
+       LP relaxation (mixtures of paths), found by column generation: a master LP over path
+       columns (HiGHS) priced by DP. Every bound used is an exact DP value, never an LP float.
+    3. Incumbents: the per-step path, the bottleneck sample's path, the generated columns, then
+       beam searches. If the incumbent reaches the upper bound it is returned at once.
+    4. ``"label-bb"`` (default): breadth-first branch and bound over the time-expanded graph.
+       Labels are partial paths (their return vectors); a label is pruned when the bounds of
+       step 2 applied to its completions cannot beat the incumbent, or when another label at
+       the same node is at least as good for every sample; labels with the same multiset of
+       visited cells merge. Memory is capped; past the cap the automatic choice falls back on
+       the MILP.
+    5. ``"milp-highs"``: binary edge variables ``x[t, s, move]`` on the time-expanded graph
+       restricted to (time, state) pairs reachable from the start within the horizon AND whose
+       best path through them (DP bounds of step 2) could beat the incumbent; unit flow out of
+       the start, conservation at each inner (time, state), visit counts
+       ``n[c] = sum of edges into c``, and ``z <= q_i(s_0) + sum_c q_i(c) n[c]`` per kept
+       sample; maximise ``z``. HiGHS runs at zero gap with 1e-9 feasibility tolerances on
+       rewards normalised to ``|q| <= 1``; a false "infeasible" (a HiGHS 1.12 presolve error;
+       the model always holds the incumbent) is retried without presolve.
+
+    The returned path is checked with ``validate_path`` and its objective is recomputed from
+    its cells. Exactness: a path better than the returned one by more than
+    ``2e-12 * (T + 1) * max|q|`` (float rounding slack) does not exist, for ``label-bb``; for
+    ``milp-highs`` up to HiGHS's tolerances as well.
 
     Args:
         mdp: the test MDP.
@@ -280,28 +324,38 @@ def plan_path(
         baseline: one of :data:`BASELINES`.
         reference_features: ``(d,)``, for the ``training_features`` baseline (see
             :func:`reward_baselines`).
-        solver: ``None`` (automatic) or one of ``SOLVERS[mode]``; ``"milp-highs"`` forces the
-            MILP even when the DP bound already certifies a candidate.
-        time_limit: seconds for HiGHS; hitting it raises ``RuntimeError``.
+        solver: ``None`` (automatic) or one of ``SOLVERS[mode]``.
+        time_limit: seconds > 0 for ``trajectory`` (``None``: no limit).
     Returns:
         a :class:`Plan`.
     Raises:
-        RuntimeError: HiGHS did not prove optimality (message included).
+        PlanningTimeout: ``time_limit`` passed first; its ``plan`` is the best path so far.
+        RuntimeError: HiGHS failed, or ``solver="label-bb"`` ran out of memory budget.
     """
     _check_choice(mode, "mode", MODES)
     _check_choice(baseline, "baseline", BASELINES)
     if solver is not None:
         _check_choice(solver, "solver", SOLVERS[mode])
+    if time_limit is not None and not (isinstance(time_limit, (int, float)) and time_limit > 0):
+        raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
     w = _check_weights(weights, mdp.num_features)
     if mode == "literal" and len(w) != 1:
         raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
-    q = sample_cell_rewards(mdp, w, baseline, reference_features)
+    b = reward_baselines(mdp, w, baseline, reference_features)
+    q = _shifted_rewards(mdp, w, b)
     if mode != "trajectory":
         cells = _dp_path(mdp, q.min(axis=0))
-        value = path_objective(mdp, cells, w, mode, baseline, reference_features)
+        value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
-    cells, bound, used = _plan_trajectory(mdp, q, solver=solver, time_limit=time_limit)
-    value = path_objective(mdp, cells, w, mode, baseline, reference_features)
+    try:
+        cells, bound, used = _plan_trajectory(mdp, q, solver=solver, time_limit=time_limit)
+    except _OutOfTime as exc:
+        cells = _cells_of(mdp, exc.states)
+        value = _objective(mdp, cells, w, b, mode)
+        plan = Plan(_as_cells(cells), value, mode, baseline, exc.solver, max(exc.bound, value))
+        raise PlanningTimeout(f"time_limit: {time_limit} s passed before the trajectory optimum was proven; "
+                              f"best objective {value:.6g}, upper bound {plan.bound:.6g}", plan) from None
+    value = _objective(mdp, cells, w, b, mode)
     return Plan(_as_cells(cells), value, mode, baseline, used, max(bound, value))
 
 
@@ -320,6 +374,15 @@ def _dp_path(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
 
 class _BudgetExceeded(Exception):
     """The label search would need more memory than its budget."""
+
+
+class _OutOfTime(Exception):
+    """The time limit passed; carries the best path found (state indices or ``None``), the best
+    proven upper bound and the solver that was running."""
+
+    def __init__(self, states: np.ndarray | None, bound: float = math.inf, solver: str = "") -> None:
+        super().__init__("time limit reached")
+        self.states, self.bound, self.solver = states, bound, solver
 
 
 def _start_distance(mdp: GridMDP) -> np.ndarray:
@@ -486,7 +549,7 @@ def _dominated(labels: np.ndarray, nodes: np.ndarray, depth: int) -> np.ndarray:
 
 
 def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                  slack: float, beam: int | None = None) -> np.ndarray | None:
+                  slack: float, deadline: float = math.inf, beam: int | None = None) -> np.ndarray | None:
     """Exact branch and bound over the time-expanded graph, breadth first (or a beam search).
 
     A label is a partial path to ``(t, s)`` with return vector ``P`` (K,). It is pruned when no
@@ -508,6 +571,7 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
         states of the best path beating ``incumbent + slack``, or ``None`` if there is none.
     Raises:
         _BudgetExceeded: more than ``_LABEL_BUDGET`` label entries at some time step.
+        _OutOfTime: ``time.monotonic()`` passed ``deadline``.
     """
     k = len(q)
     succ = successor_table(mdp.height, mdp.width)
@@ -523,6 +587,8 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
     for t in range(1, mdp.horizon + 1):
         kept = []
         for lo in range(0, len(labels), chunk):  # bounded memory; vectorised inside
+            if time.monotonic() > deadline:
+                raise _OutOfTime(None)
             nxt = succ[nodes[lo : lo + chunk]]
             parent, move = np.nonzero(nxt >= 0)
             child = nxt[parent, move]
@@ -560,45 +626,55 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
 def _plan_trajectory(
     mdp: GridMDP, q_cells: np.ndarray, *, solver: str | None, time_limit: float | None
 ) -> tuple[np.ndarray, float, str]:
-    """Best path for ``min_i sum_t q_i(s_t)``; returns ``(cells (T+1, 2), upper bound, solver)``."""
+    """Best path for ``min_i sum_t q_i(s_t)``; returns ``(cells (T+1, 2), upper bound, solver)``.
+
+    Raises:
+        _OutOfTime: the time limit passed first (carries the best path and bound so far).
+    """
+    deadline = math.inf if time_limit is None else time.monotonic() + time_limit
     q_all = q_cells.reshape(len(q_cells), -1)
     dist = _start_distance(mdp)
     reach = np.flatnonzero(dist <= mdp.horizon)
     q = q_all[_reduce_samples(q_all[:, reach])]
-    scale = float(np.abs(q[:, reach]).max())
-    slack = _CERTIFY_RTOL * (mdp.horizon + 1) * scale
+    slack = _CERTIFY_RTOL * (mdp.horizon + 1) * float(np.abs(q[:, reach]).max())
     own_best = _to_go(mdp, q)[0][:, mdp.start_state] + q[:, mdp.start_state]
     seeds = [_path_states(mdp, q.min(axis=0)), _path_states(mdp, q[int(np.argmin(own_best))])]
     relaxation = _lp_relaxation(mdp, q, seeds, tol=slack)
     upper = min(relaxation.bound, float(own_best.min()))
     values = [_trajectory_value(q, p) for p in relaxation.paths]
-    best = relaxation.paths[int(np.argmax(values))]
-    incumbent = max(values)
-    if solver != "milp-highs":
-        if incumbent >= upper - slack:  # the LP relaxation is tight: no branching needed
-            return _cells_of(mdp, best), upper, "label-bb"
-        for width in _BEAM_WIDTHS:  # cheap heuristics first: a better incumbent prunes more
-            found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, beam=width)
-            if found is not None:
-                best, incumbent = found, _trajectory_value(q, found)
-        try:
-            found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack)
-        except _BudgetExceeded as exc:
-            if solver == "label-bb":
-                raise RuntimeError(f"trajectory label search over budget ({exc}); "
-                                   "use solver='milp-highs'") from exc
-        else:
-            if found is not None and _trajectory_value(q, found) > incumbent:
-                best, incumbent = found, _trajectory_value(q, found)
-            return _cells_of(mdp, best), incumbent, "label-bb"
-    nodes = _promising_nodes(mdp, q, np.concatenate([relaxation.multipliers, np.eye(len(q))]),
-                             incumbent, slack, best)
-    model = _build_trajectory_milp(mdp, q, nodes)
-    cells, dual_bound = _solve_trajectory_milp(mdp, model, time_limit)
+    best, incumbent = relaxation.paths[int(np.argmax(values))], max(values)
+    used = "milp-highs" if solver == "milp-highs" else "label-bb"
+    try:
+        if used == "label-bb":
+            if incumbent >= upper - slack:  # the LP relaxation is tight: no branching needed
+                return _cells_of(mdp, best), upper, used
+            for width in _BEAM_WIDTHS:  # cheap heuristics first: a better incumbent prunes more
+                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline, beam=width)
+                if found is not None:
+                    best, incumbent = found, _trajectory_value(q, found)
+            try:
+                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline)
+            except _BudgetExceeded as exc:
+                if solver == "label-bb":
+                    raise RuntimeError(f"trajectory label search over budget ({exc}); "
+                                       "use solver='milp-highs'") from exc
+                used = "milp-highs"  # automatic choice: fall back on the MILP
+            else:
+                if found is not None and _trajectory_value(q, found) > incumbent:
+                    best, incumbent = found, _trajectory_value(q, found)
+                return _cells_of(mdp, best), incumbent, used
+        multipliers = np.concatenate([relaxation.multipliers, np.eye(len(q))])
+        model = _build_trajectory_milp(mdp, q, _promising_nodes(mdp, q, multipliers, incumbent, slack, best))
+        cells, dual_bound = _solve_trajectory_milp(mdp, model, deadline)
+    except _OutOfTime as exc:
+        found = exc.states
+        if found is not None and _trajectory_value(q, found) > incumbent:
+            best, incumbent = found, _trajectory_value(q, found)
+        raise _OutOfTime(best, max(incumbent, min(upper, exc.bound)), used) from None
     found = cells[:, 0] * mdp.width + cells[:, 1]
     if _trajectory_value(q, found) > incumbent:  # else keep the incumbent (HiGHS tolerance)
         best, incumbent = found, _trajectory_value(q, found)
-    return _cells_of(mdp, best), max(incumbent, min(upper, dual_bound)), "milp-highs"
+    return _cells_of(mdp, best), max(incumbent, min(upper, dual_bound)), used
 
 
 def _cells_of(mdp: GridMDP, states: np.ndarray) -> np.ndarray:
@@ -726,27 +802,44 @@ def _run_highs(model: _TrajectoryMilp, options: dict) -> "object":
                     constraints=model.constraints, options=options)
 
 
-def _solve_trajectory_milp(
-    mdp: GridMDP, model: _TrajectoryMilp, time_limit: float | None
-) -> tuple[np.ndarray, float]:
+def _solve_trajectory_milp(mdp: GridMDP, model: _TrajectoryMilp, deadline: float) -> tuple[np.ndarray, float]:
     """Solve the model with HiGHS; returns the path's ``(T + 1, 2)`` cells and the dual bound
     (an upper bound on the objective, in objective units).
 
     The model always contains a feasible path, so an "infeasible" answer is a HiGHS presolve
     error (HiGHS 1.12 makes it on some of these models): solve again without presolve.
+
+    Raises:
+        _OutOfTime: HiGHS hit the time left before ``deadline``.
+        RuntimeError: any other non-optimal HiGHS status.
     """
     options = dict(_HIGHS_OPTIONS)
-    if time_limit is not None:
-        options["time_limit"] = float(time_limit)
-    res = _run_highs(model, options)
+    res = _run_highs(model, _with_time_left(options, deadline))
     if res.status == 2:
-        res = _run_highs(model, dict(options, presolve=False))
+        res = _run_highs(model, _with_time_left(dict(options, presolve=False), deadline))
+    dual = res.mip_dual_bound if res.mip_dual_bound is not None else res.fun
+    bound = math.inf if dual is None or not np.isfinite(dual) else -float(dual) * model.scale
+    if res.status == 1:
+        states = None
+        if res.x is not None:
+            chosen = res.x[: model.num_edges] > 0.5
+            cells = _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target)
+            states = cells[:, 0] * mdp.width + cells[:, 1]
+        raise _OutOfTime(states, bound)
     if res.status != 0 or res.x is None:
         raise RuntimeError(f"trajectory MILP not solved to optimality: status {res.status}: {res.message}")
     chosen = res.x[: model.num_edges] > 0.5
-    cells = _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target)
-    dual = res.mip_dual_bound if res.mip_dual_bound is not None else res.fun
-    return cells, -float(dual) * model.scale
+    return _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target), bound
+
+
+def _with_time_left(options: dict, deadline: float) -> dict:
+    """HiGHS options with ``time_limit`` set to the time left before ``deadline``."""
+    if math.isinf(deadline):
+        return options
+    left = deadline - time.monotonic()
+    if left <= 0:
+        raise _OutOfTime(None)
+    return dict(options, time_limit=left)
 
 
 def _path_from_edges(

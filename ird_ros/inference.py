@@ -165,7 +165,6 @@ class InferenceNode(Node):
                             # Own reentrant group: a pending (awaiting) request must not hold the
                             # default group, which serves parameters (and subscriptions).
                             callback_group=ReentrantCallbackGroup())
-        self.get_logger().info(f"inference ready: serving {names.SRV_INFER}")
 
     def destroy_node(self) -> None:
         self._pool.shutdown()

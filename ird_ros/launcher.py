@@ -45,7 +45,8 @@ The recorder is ready when it is in the graph, subscribes to every topic that th
 nodes publish and it is configured to record, and, for each of those topics that is latched
 (transient local) and on which the probe itself received a message, its ``/recorder/status``
 counts at least one recorded message (so stopping right after "ready" still leaves the
-current maps, proxy and plan in the bag). ``wait_ready`` fails with ``LaunchError``
+current maps, proxy and plan in the bag). ``wait_ready`` keeps applying that last condition
+after the recorder was first ready, for latched messages the probe receives later. ``wait_ready`` fails with ``LaunchError``
 listing, per node, what is still missing (or how a process died, with its last output).
 
 Death and respawn. A child that exits while the graph runs is reported (exit code or
@@ -399,6 +400,8 @@ class GraphLauncher:
         self._supervisor: threading.Thread | None = None
         self._probe_thread: threading.Thread | None = None
         self._probe_error: BaseException | None = None
+        # after the recorder is ready, latched messages the probe got later must reach the bag
+        self._recorder_lagging: list[str] = []
         self._stopping = False
         self._started = False
         self._stopped = False
@@ -686,6 +689,12 @@ class GraphLauncher:
                         return
                 self._executor.spin_once(timeout_sec=0.05)
                 self._check_readiness()
+                rec = self._children.get(RECORDER)
+                if rec is not None and rec.state == "ready":
+                    lag = self._recorder_lag()
+                    with self._cond:
+                        self._recorder_lagging = lag
+                        self._cond.notify_all()
         except BaseException as exc:  # noqa: BLE001 - surfaced by wait_ready
             with self._cond:
                 if not self._stopping:
@@ -776,13 +785,18 @@ class GraphLauncher:
                     if not any(i.node_name == RECORDER for i in subs):
                         missing.append(f"not subscribed to {topic}")
                         continue
-                    # a latched message that exists (the probe got it) must be in the bag too
                     if topic not in self._probe_subs:
                         self._watch_topic(topic)
-                    if (self._latched.get(topic) and topic in self._received
-                            and self._recorder_counts.get(topic, 0) == 0):
-                        missing.append(f"latched message on {topic} not recorded yet")
+                missing += self._recorder_lag()
         return missing, gids
+
+    def _recorder_lag(self) -> list[str]:
+        """Latched messages that exist (the probe received one) but are not in the bag yet."""
+        return [
+            f"latched message on {topic} not recorded yet"
+            for topic in self._expected_recorded()
+            if self._latched.get(topic) and topic in self._received and self._recorder_counts.get(topic, 0) == 0
+        ]
 
     def _update(self, child: _Child, missing: list[str], gids: set) -> None:
         spec = child.spec
@@ -820,7 +834,9 @@ class GraphLauncher:
                     raise LaunchError("node(s) died before becoming ready:\n" + "\n".join(
                         f"  {c.spec.name} (pid {c.pid}) {describe_exit(c.returncode)}; last output:\n"
                         + "\n".join("    " + line for line in list(c.tail)[-15:]) for c in dead))
-                if all(c.state == "ready" for c in children):
+                if all(c.state == "ready" for c in children) and not (
+                    RECORDER in names and self._recorder_lagging
+                ):
                     return {c.spec.name: float(c.ready_after or 0.0) for c in children}
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
@@ -829,6 +845,8 @@ class GraphLauncher:
                         if c.state != "ready":
                             what = "; ".join(c.missing) or c.state
                             lines.append(f"  {c.spec.name} (pid {c.pid}, {c.state}): {what}")
+                        elif c.spec.name == RECORDER and self._recorder_lagging:
+                            lines.append(f"  {RECORDER}: " + "; ".join(self._recorder_lagging))
                     raise LaunchError(f"graph not ready after {timeout:g} s:\n" + "\n".join(lines))
                 self._cond.wait(min(remaining, 0.5))
 

@@ -6,9 +6,10 @@
 
 It restores the default SIGINT handler (a process started with ``&`` from a non-interactive
 shell inherits SIGINT *ignored*), makes SIGTERM behave like SIGINT, initialises rclpy with the
-command line, spins the node in a single-threaded executor and, on SIGINT/SIGTERM, shuts the
-executor down before destroying the node and exits 0. A node that cannot start (bad parameter)
-logs why and exits 2.
+command line, creates the node, logs ``<name> ready`` and spins the node in a single-threaded
+executor; on SIGINT/SIGTERM it shuts the executor down before destroying the node (whose
+``destroy_node`` ends its worker processes) and exits 0. A node that cannot start (bad
+parameter) logs ``cannot start: ...`` and exits 2.
 
 ``WorkerPool`` runs picklable functions in worker processes and hands the result to an
 ``async`` rclpy callback as an awaitable rclpy Future, so a long computation (MCMC, MILP) never
@@ -18,6 +19,9 @@ service callback is a coroutine; ``await pool.submit(fn, ...)`` suspends it; the
 completion callback (a pool thread) sets the rclpy Future's result and wakes the executor
 (``Executor.wake()``, a guard condition), and the executor resumes the coroutine on its own
 thread. The executor re-checks a suspended coroutine only when it wakes up, so nothing polls.
+The service must live in its own callback group (e.g. a ``ReentrantCallbackGroup``): rclpy
+holds a callback's group until its coroutine finishes, so a suspended request in the node's
+default (mutually exclusive) group would block the parameter services and every subscription.
 """
 
 from __future__ import annotations
@@ -97,6 +101,7 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
     executor = None
     code = 0
     try:
+        executor = SingleThreadedExecutor()
         try:
             node = factory()
         except (KeyboardInterrupt, ExternalShutdownException):
@@ -104,8 +109,9 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
         except Exception as exc:  # noqa: BLE001 - bad parameters, missing inputs: say why, exit 2
             rclpy.logging.get_logger("ird_ros").error(f"cannot start: {type(exc).__name__}: {exc}")
             return 2
-        executor = SingleThreadedExecutor()
         executor.add_node(node)
+        # The readiness line launchers and tests wait for ("<name> ready").
+        node.get_logger().info(f"{node.get_name()} ready")
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -147,8 +153,8 @@ class WorkerPool:
     """A ``ProcessPoolExecutor`` (spawn start method) whose results rclpy coroutines can await.
 
     ``max_workers`` computations run at once; further submissions queue in FIFO order.
-    ``warm_modules`` are imported in every worker at start-up so the first request does not pay
-    for the imports. A worker that dies (``BrokenProcessPool``) is replaced on the next submit.
+    ``warm_modules`` are imported in every worker at start-up (the constructor waits for it) so
+    the first request does not pay for the process start and the imports. A worker that dies (``BrokenProcessPool``) is replaced on the next submit.
     """
 
     def __init__(self, max_workers: int = 1, warm_modules: Sequence[str] = ()) -> None:
@@ -167,8 +173,11 @@ class WorkerPool:
             initializer=_worker_init,
         )
         if self._warm_modules:
-            for _ in range(self._max_workers):
-                self._pool.submit(_warm, self._warm_modules)
+            # Start every worker now and wait until it has imported the modules, so the node is
+            # ready (and the first request fast) once the constructor returns.
+            warming = [self._pool.submit(_warm, self._warm_modules) for _ in range(self._max_workers)]
+            for future in warming:
+                future.result(timeout=120.0)
 
     def submit_concurrent(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> concurrent.futures.Future:
         """Submit and return the ``concurrent.futures.Future`` (blocking callers, tests)."""

@@ -93,7 +93,6 @@ class PerceptionNode(Node):
         self._classifiers: dict[tuple, Any] = {}
         self.create_subscription(FeatureGrid, names.TOPIC_TEST_FEATURES, self._on_test, qos)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, qos)
-        self.get_logger().info("perception ready: waiting for /world/test_features and /world/proxy")
 
     def _on_test(self, msg: FeatureGrid) -> None:
         self._test_msg = msg

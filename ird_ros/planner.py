@@ -29,6 +29,12 @@ reference_features)``, computed in a worker process (the trajectory MILP can tak
 published on ``/plan`` (nav_msgs/Path, poses at cell centres, stamp = now, frame ``map``) and
 ``/ird/plan_info`` (same stamp; label, mode, baseline, objective, cells), both latched.
 
+The response message ends with the inputs a request left empty and where they came from, as
+``; inputs: weights=/ird/posterior@<sec>.<nanosec>, map=/world/test_features@<sec>.<nanosec>,
+reference_features=/world/proxy@...+/world/train_proxy_features@...+/world/train_features@...``
+(header stamps of the messages used), so a caller can tell which world generation was planned on.
+Inputs given in the request are not listed.
+
 ``/ird/risk_map`` (OccupancyGrid 0..100, ``planning.risk_map`` of the posterior samples on the
 matching perceived test map, latched) is republished whenever a new posterior or a new matching
 map arrives. With ``replan_on_posterior`` true, every new posterior also triggers a plan with
@@ -137,7 +143,6 @@ class PlannerNode(Node):
                             # Own reentrant group: a pending (awaiting) request must not hold the
                             # default group, which serves parameters (and subscriptions).
                             callback_group=ReentrantCallbackGroup())
-        self.get_logger().info(f"planner ready: serving {names.SRV_PLAN}")
 
     def destroy_node(self) -> None:
         self._pool.shutdown()

@@ -56,7 +56,6 @@ class RobNode(Node):
         self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_info, latched)
         self.create_subscription(Path, names.TOPIC_PLAN, self._on_plan, latched)
         self.create_timer(1.0 / self.rate_hz, self._tick)
-        self.get_logger().info(f"rob ready: executing {names.TOPIC_PLAN} at {self.rate_hz} Hz")
 
     # ------------------------------------------------------------------ inputs
 

@@ -72,7 +72,7 @@ class WorldNode(Node):
         self.generate(self.condition, self.seed)
         self.create_service(GenerateWorld, names.SRV_GENERATE, self._on_generate)
         self.get_logger().info(
-            f"world ready: {self.condition} seed {self.seed} {self.height}x{self.width} T={self.horizon}")
+            f"published {self.condition} seed {self.seed} {self.height}x{self.width} T={self.horizon}")
 
     # ------------------------------------------------------------------ generation
 

@@ -110,8 +110,9 @@ def main(argv: list[str] | None = None) -> int:
             print(graph.status_table(), flush=True)
             code = 1
             return code
-        print(f"[launcher] graph ready after {time.monotonic() - t_start:.2f} s", flush=True)
+        # the table first: a line "graph ready after" means everything above it is out
         print(graph.status_table(), flush=True)
+        print(f"[launcher] graph ready after {time.monotonic() - t_start:.2f} s", flush=True)
         wake = threading.Event()
         end = None if args.run_for is None else time.monotonic() + args.run_for
         while True:

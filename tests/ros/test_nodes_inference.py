@@ -359,7 +359,7 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     from rcl_interfaces.srv import DescribeParameters
 
     big = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
-    long_req = make_request(big, method="maxent_z", num_samples=3000, seed=1)
+    long_req = make_request(big, method="maxent_z", num_samples=120, seed=1)
     node = client.node
     describe = node.create_client(DescribeParameters, "/inference/describe_parameters")
     wait_for_service(node, describe, processes=[client.proc])
@@ -369,7 +369,7 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     spin_until(node, lambda: time.monotonic() - started > 0.5 or long_future.done(), timeout=5.0,
                what="the long request to be under way")
     latencies, rejects = [], []
-    for i in range(10):
+    for i in range(20):
         t0 = time.monotonic()
         answer = call_service(node, describe, DescribeParameters.Request(names=["num_chains", "warmup"]),
                               timeout=5.0, processes=[client.proc])
@@ -382,14 +382,17 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
         rejects.append(time.monotonic() - t0)
         assert not response.success and response.message.startswith("beta")
     still_running = not long_future.done()
-    print(f"describe_parameters latency during inference: max {1000 * max(latencies):.1f} ms, "
-          f"median {1000 * sorted(latencies)[5]:.1f} ms; bad /ird/infer: max {1000 * max(rejects):.1f} ms")
+    print(f"describe_parameters during inference: max {1000 * max(latencies):.1f} ms, median "
+          f"{1000 * np.median(latencies):.1f} ms; bad /ird/infer: max {1000 * max(rejects):.1f} ms, median "
+          f"{1000 * np.median(rejects):.1f} ms")
     assert still_running, "the long inference finished too early to prove anything: make it longer"
-    assert max(latencies) < 0.1, latencies
-    assert max(rejects) < 0.1, rejects
+    # A blocked executor would answer only after the inference (seconds). On a shared 2-core
+    # machine a single answer may be delayed by the OS scheduler, so allow 2 of 20 stragglers.
+    for what, times in (("describe_parameters", latencies), ("bad /ird/infer", rejects)):
+        assert np.median(times) < 0.1 and sum(t >= 0.1 for t in times) <= 2, (what, times)
     spin_until(node, long_future.done, timeout=180.0, what="the long inference", processes=[client.proc])
     result = long_future.result()
     assert result.success, result.message
-    assert result.posterior.num_samples == 3000
+    assert result.posterior.num_samples == 120
     print(f"long inference took {time.monotonic() - started:.1f} s")
     node.destroy_client(describe)

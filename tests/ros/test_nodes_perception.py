@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -22,54 +23,83 @@ H, W, T, OBS = 8, 9, 10, 10
 SEED = 21
 
 
+@contextlib.contextmanager
+def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
+    """Start the node processes together, wait until each logs "<name> ready", stop them at the
+    end (SIGINT) and check that each exited with 0."""
+    procs: list[NodeProcess] = []
+    try:
+        for name, args in nodes:
+            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
+        for proc in procs:
+            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
+        yield procs
+    finally:
+        for proc in procs:
+            proc.stop()
+    for proc in procs:
+        assert proc.returncode == 0, proc.describe()
+
+
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
     world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
                   "-p", f"obs_dim:={OBS}"]
     perception_args = ["-m", "ird_ros.perception", "--ros-args", "--params-file", PARAMS]
-    with spawn_node_process(world_args, domain=ros_domain, name="world", ready_text="world ready") as world, \
-            spawn_node_process(perception_args, domain=ros_domain, name="perception",
-                               ready_text="perception ready") as perception:
-        yield [world, perception]
-    assert world.returncode == 0, world.describe()
-    assert perception.returncode == 0, perception.describe()
+    with running(ros_domain, ("world", world_args), ("perception", perception_args)) as procs:
+        yield procs
 
 
-def perceive(node: Any, graph: list[NodeProcess], condition: str, seed: int) -> tuple[Any, Any]:
-    """Generate a world and return perception's (/terrain/classes, /terrain/features) for it."""
-    client = node.create_client(GenerateWorld, names.SRV_GENERATE)
-    wait_for_service(node, client, processes=graph)
-    response = call_service(node, client, GenerateWorld.Request(condition=condition, seed=seed), processes=graph)
-    node.destroy_client(client)
-    assert response.success, response.message
-    proxies: list[ProxyReward] = []
-    classes: list[TerrainGrid] = []
-    features: list[FeatureGrid] = []
-    qos = names.latched_qos()
-    subs = [node.create_subscription(ProxyReward, names.TOPIC_PROXY, proxies.append, qos),
-            node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, classes.append, qos),
-            node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, features.append, qos)]
+class Probe:
+    """Module-wide latched subscriptions to the proxy and perception's outputs, and a
+    /world/generate client (created once: DDS discovery is paid once)."""
 
-    def arrived() -> bool:
-        if not proxies or (proxies[-1].condition, proxies[-1].seed) != (condition, seed):
-            return False
-        stamp = proxies[-1].header.stamp
-        return (any(m.header.stamp == stamp for m in classes) and any(m.header.stamp == stamp for m in features))
+    def __init__(self, node: Any, graph: list[NodeProcess]) -> None:
+        self.node, self.graph = node, graph
+        self.proxies: list[ProxyReward] = []
+        self.classes: list[TerrainGrid] = []
+        self.features: list[FeatureGrid] = []
+        qos = names.latched_qos()
+        node.create_subscription(ProxyReward, names.TOPIC_PROXY, self.proxies.append, qos)
+        node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, self.classes.append, qos)
+        node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, self.features.append, qos)
+        self.client = node.create_client(GenerateWorld, names.SRV_GENERATE)
+        wait_for_service(node, self.client, processes=graph)
 
-    try:
-        spin_until(node, arrived, timeout=30.0, what=f"perception of {condition}", processes=graph)
-    finally:
-        for sub in subs:
-            node.destroy_subscription(sub)
-    stamp = proxies[-1].header.stamp
-    return (next(m for m in reversed(classes) if m.header.stamp == stamp),
-            next(m for m in reversed(features) if m.header.stamp == stamp))
+    def perceive(self, condition: str, seed: int) -> tuple[TerrainGrid, FeatureGrid]:
+        """Generate a world; return perception's (/terrain/classes, /terrain/features) of it."""
+        response = call_service(self.node, self.client, GenerateWorld.Request(condition=condition, seed=seed),
+                                processes=self.graph)
+        assert response.success, response.message
+        found: list[Any] = []
+
+        def arrived() -> bool:
+            matching = [p for p in self.proxies if (p.condition, p.seed) == (condition, seed)]
+            if not matching:
+                return False
+            stamp = matching[-1].header.stamp
+            classes = [m for m in self.classes if m.header.stamp == stamp]
+            features = [m for m in self.features if m.header.stamp == stamp]
+            found[:] = [classes[-1], features[-1]] if classes and features else []
+            return bool(found)
+
+        spin_until(self.node, arrived, timeout=30.0, what=f"perception of {condition}", processes=self.graph)
+        return found[0], found[1]
+
+
+@pytest.fixture(scope="module")
+def probe(ros_ctx: Any, graph: list[NodeProcess]) -> Iterator[Probe]:
+    import rclpy
+
+    node = rclpy.create_node("perception_probe", context=ros_ctx)
+    yield Probe(node, graph)
+    node.destroy_node()
 
 
 @pytest.mark.parametrize("condition", lavaland.CONDITIONS)
-def test_perception(condition: str, ros_node: Any, graph: list[NodeProcess]) -> None:
-    classes_msg, features_msg = perceive(ros_node, graph, condition, SEED)
+def test_perception(condition: str, probe: Probe) -> None:
+    classes_msg, features_msg = probe.perceive(condition, SEED)
     inst = lavaland.make_instance(condition, SEED, size=(H, W), horizon=T, obs_dim=OBS)
     grid = conv.terrain_grid_from_msg(classes_msg)
     features = conv.feature_grid_from_msg(features_msg)

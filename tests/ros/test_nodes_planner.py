@@ -4,6 +4,7 @@ follows the posterior, replan_on_posterior plans by itself, and bad requests are
 
 from __future__ import annotations
 
+import contextlib
 import math
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -34,6 +35,24 @@ H, W, T, OBS = 7, 8, 9, 8
 SEED = 13
 
 
+@contextlib.contextmanager
+def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
+    """Start the node processes together, wait until each logs "<name> ready", stop them at the
+    end (SIGINT) and check that each exited with 0."""
+    procs: list[NodeProcess] = []
+    try:
+        for name, args in nodes:
+            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
+        for proc in procs:
+            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
+        yield procs
+    finally:
+        for proc in procs:
+            proc.stop()
+    for proc in procs:
+        assert proc.returncode == 0, proc.describe()
+
+
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
     world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
@@ -43,13 +62,9 @@ def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
     planner_args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS,
                     "-p", "replan_on_posterior:=true", "-p", "default_mode:=per_step",
                     "-p", "default_baseline:=training_features"]
-    with spawn_node_process(world_args, domain=ros_domain, name="world", ready_text="world ready") as world, \
-            spawn_node_process(perception_args, domain=ros_domain, name="perception",
-                               ready_text="perception ready") as perception, \
-            spawn_node_process(planner_args, domain=ros_domain, name="planner", ready_text="planner ready") as planner:
-        yield [world, perception, planner]
-    for proc in (world, perception, planner):
-        assert proc.returncode == 0, proc.describe()
+    with running(ros_domain, ("world", world_args), ("perception", perception_args),
+                 ("planner", planner_args)) as procs:
+        yield procs
 
 
 class Probe:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -30,17 +31,32 @@ SEED = 5
 RESOLUTION, ORIGIN = 0.5, (0.0, 0.0)
 
 
+@contextlib.contextmanager
+def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
+    """Start the node processes together, wait until each logs "<name> ready", stop them at the
+    end (SIGINT) and check that each exited with 0."""
+    procs: list[NodeProcess] = []
+    try:
+        for name, args in nodes:
+            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
+        for proc in procs:
+            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
+        yield procs
+    finally:
+        for proc in procs:
+            proc.stop()
+    for proc in procs:
+        assert proc.returncode == 0, proc.describe()
+
+
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
     world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
                   "-p", f"resolution:={RESOLUTION}"]
     rob_args = ["-m", "ird_ros.rob", "--ros-args", "--params-file", PARAMS, "-p", "rate_hz:=40.0"]
-    with spawn_node_process(world_args, domain=ros_domain, name="world", ready_text="world ready") as world, \
-            spawn_node_process(rob_args, domain=ros_domain, name="rob", ready_text="rob ready") as rob:
-        yield [world, rob]
-    assert world.returncode == 0, world.describe()
-    assert rob.returncode == 0, rob.describe()
+    with running(ros_domain, ("world", world_args), ("rob", rob_args)) as procs:
+        yield procs
 
 
 class Probe:

@@ -34,49 +34,68 @@ def world(ros_domain: DomainLease) -> Iterator[NodeProcess]:
     assert proc.returncode == 0, proc.describe()
 
 
-def latest(node: Any, msg_type: Any, topic: str, accept: Any, processes: list, timeout: float = 20.0) -> Any:
-    """Subscribe (latched QoS) and spin until a message satisfying ``accept`` arrives."""
-    got: list[Any] = []
-    sub = node.create_subscription(msg_type, topic, lambda m: got.append(m) if accept(m) else None,
-                                   names.latched_qos())
-    try:
-        spin_until(node, lambda: bool(got), timeout=timeout, what=f"a matching message on {topic}",
-                   processes=processes)
-    finally:
-        node.destroy_subscription(sub)
-    return got[-1]
+class Probe:
+    """Latched subscriptions to every world topic and a /world/generate client, module-wide
+    (creating them per test would pay DDS discovery every time)."""
+
+    TOPICS = ((names.TOPIC_PROXY, ProxyReward), (names.TOPIC_TRAIN_FEATURES, FeatureGrid),
+              (names.TOPIC_TEST_FEATURES, FeatureGrid), (names.TOPIC_TRAIN_PROXY_FEATURES, FeatureGrid),
+              (names.TOPIC_TERRAIN, TerrainGrid))
+
+    def __init__(self, node: Any, world: NodeProcess) -> None:
+        self.node, self.world = node, world
+        self.received: dict[str, list[Any]] = {topic: [] for topic, _ in self.TOPICS}
+        for topic, msg_type in self.TOPICS:
+            node.create_subscription(msg_type, topic, self.received[topic].append, names.latched_qos())
+        self.client = node.create_client(GenerateWorld, names.SRV_GENERATE)
+        wait_for_service(node, self.client, processes=[world])
+
+    def generate(self, condition: str, seed: int) -> GenerateWorld.Response:
+        return call_service(self.node, self.client, GenerateWorld.Request(condition=condition, seed=seed),
+                            processes=[self.world])
+
+    def latest_proxy(self) -> ProxyReward:
+        spin_until(self.node, lambda: bool(self.received[names.TOPIC_PROXY]), timeout=20.0, what="/world/proxy",
+                   processes=[self.world])
+        return self.received[names.TOPIC_PROXY][-1]
+
+    def messages(self, condition: str, seed: int) -> dict[str, Any]:
+        """The latched messages of the generation (condition, seed), all with the proxy's stamp."""
+        proxies = self.received[names.TOPIC_PROXY]
+        out: dict[str, Any] = {}
+
+        def complete() -> bool:
+            matching = [p for p in proxies if (p.condition, p.seed) == (condition, seed)]
+            if not matching:
+                return False
+            stamp = matching[-1].header.stamp
+            out.clear()
+            for topic, msgs in self.received.items():
+                found = [m for m in msgs if m.header.stamp == stamp]
+                if not found:
+                    return False
+                out[topic] = found[-1]
+            return True
+
+        spin_until(self.node, complete, timeout=20.0, what=f"the world {condition}/{seed}", processes=[self.world])
+        return out
 
 
-def generate(node: Any, world: NodeProcess, condition: str, seed: int) -> GenerateWorld.Response:
-    client = node.create_client(GenerateWorld, names.SRV_GENERATE)
-    try:
-        wait_for_service(node, client, processes=[world])
-        return call_service(node, client, GenerateWorld.Request(condition=condition, seed=seed),
-                            processes=[world])
-    finally:
-        node.destroy_client(client)
+@pytest.fixture(scope="module")
+def probe(ros_ctx: Any, world: NodeProcess) -> Iterator[Probe]:
+    import rclpy
 
-
-def world_messages(node: Any, world: NodeProcess, condition: str, seed: int) -> dict[str, Any]:
-    """The latched messages of the generation (condition, seed): the proxy first, then the
-    maps with the proxy's stamp."""
-    proxy = latest(node, ProxyReward, names.TOPIC_PROXY,
-                   lambda m: m.condition == condition and m.seed == seed, [world])
-    stamp = (proxy.header.stamp.sec, proxy.header.stamp.nanosec)
-    same = lambda m: (m.header.stamp.sec, m.header.stamp.nanosec) == stamp  # noqa: E731
-    out = {names.TOPIC_PROXY: proxy}
-    for topic, msg_type in ((names.TOPIC_TRAIN_FEATURES, FeatureGrid), (names.TOPIC_TEST_FEATURES, FeatureGrid),
-                            (names.TOPIC_TRAIN_PROXY_FEATURES, FeatureGrid), (names.TOPIC_TERRAIN, TerrainGrid)):
-        out[topic] = latest(node, msg_type, topic, same, [world])
-    return out
+    node = rclpy.create_node("world_probe", context=ros_ctx)
+    yield Probe(node, world)
+    node.destroy_node()
 
 
 @pytest.mark.parametrize("condition", lavaland.CONDITIONS)
-def test_every_topic_for_every_condition(condition: str, ros_node: Any, world: NodeProcess) -> None:
+def test_every_topic_for_every_condition(condition: str, probe: Probe) -> None:
     seed = 11
-    response = generate(ros_node, world, condition, seed)
+    response = probe.generate(condition, seed)
     assert response.success, response.message
-    msgs = world_messages(ros_node, world, condition, seed)
+    msgs = probe.messages(condition, seed)
     inst = lavaland.make_instance(condition, seed, size=(H, W), horizon=T, obs_dim=OBS)
 
     for topic, values, layers in (
@@ -110,13 +129,14 @@ def test_every_topic_for_every_condition(condition: str, ros_node: Any, world: N
         assert inst.proxy_feature_names == inst.feature_names
 
 
-def test_generate_changes_the_maps(ros_node: Any, world: NodeProcess) -> None:
-    first = generate(ros_node, world, "latent_raw", 1)
+def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
+    ros_node = probe.node
+    first = probe.generate("latent_raw", 1)
     assert first.success, first.message
-    a = world_messages(ros_node, world, "latent_raw", 1)
-    second = generate(ros_node, world, "", 2)  # empty condition: keep latent_raw
+    a = probe.messages("latent_raw", 1)
+    second = probe.generate("", 2)  # empty condition: keep latent_raw
     assert second.success, second.message
-    b = world_messages(ros_node, world, "latent_raw", 2)
+    b = probe.messages("latent_raw", 2)
     for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES):
         fa, fb = (conv.feature_grid_from_msg(m[topic]).features for m in (a, b))
         assert fa.shape == fb.shape and not np.array_equal(fa, fb), topic
@@ -131,19 +151,22 @@ def test_generate_changes_the_maps(ros_node: Any, world: NodeProcess) -> None:
     assert (values[0].string_value, values[1].integer_value) == ("latent_raw", 2)
 
 
-@pytest.mark.parametrize("bad", ["lava_land", "SIDE_EFFECTS", " side_effects", "x" * 300])
-def test_bad_condition_is_rejected(bad: str, ros_node: Any, world: NodeProcess) -> None:
-    ok = generate(ros_node, world, "reward_hacking", 5)
+def test_bad_condition_is_rejected(probe: Probe, ros_node: Any, world: NodeProcess) -> None:
+    ok = probe.generate("reward_hacking", 5)
     assert ok.success, ok.message
-    before = world_messages(ros_node, world, "reward_hacking", 5)
-    response = generate(ros_node, world, bad, 6)
-    assert not response.success
-    assert response.message.startswith("condition:"), response.message
-    # Nothing was republished: the latched proxy is still the previous generation.
-    after = latest(ros_node, ProxyReward, names.TOPIC_PROXY, lambda m: True, [world])
-    assert (after.condition, after.seed, after.header.stamp) == ("reward_hacking", 5, before[names.TOPIC_PROXY].header.stamp)
+    before = probe.messages("reward_hacking", 5)[names.TOPIC_PROXY]
+    for bad in ("lava_land", "SIDE_EFFECTS", " side_effects", "x" * 300):
+        response = probe.generate(bad, 6)
+        assert not response.success, bad
+        assert response.message.startswith("condition:"), response.message
+    # Nothing was republished: a fresh subscriber gets the previous generation's latched proxy.
+    fresh: list[ProxyReward] = []
+    sub = ros_node.create_subscription(ProxyReward, names.TOPIC_PROXY, fresh.append, names.latched_qos())
+    spin_until(ros_node, lambda: bool(fresh), timeout=20.0, what="/world/proxy", processes=[world])
+    ros_node.destroy_subscription(sub)
+    assert (fresh[-1].condition, fresh[-1].seed, fresh[-1].header.stamp) == ("reward_hacking", 5, before.header.stamp)
     # ... and the node keeps serving.
-    assert generate(ros_node, world, "side_effects", 7).success
+    assert probe.generate("side_effects", 7).success
 
 
 def test_bad_startup_parameter_exits_2(ros_domain: DomainLease) -> None:
