@@ -90,6 +90,7 @@ class TrialSpec:
     prior_sigma: float = 1.0
     num_chains: int = 4
     warmup: int = 50
+    thin: int = 3
     max_leapfrog: int = 16
     num_proxy_samples: int = 100
     traj_samples: int = 10
@@ -157,7 +158,7 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str,
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return inference.sample_posterior(
             proxy, lavaland.train_mdp(inst), spec.beta, method, spec.num_samples, sampler_seed,
-            spec.prior_sigma, num_chains=spec.num_chains, warmup=spec.warmup,
+            spec.prior_sigma, num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
             max_leapfrog=spec.max_leapfrog, **kwargs)
 
 

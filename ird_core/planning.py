@@ -343,7 +343,11 @@ def plan_path(
         raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
     b = reward_baselines(mdp, w, baseline, reference_features)
     q = _shifted_rewards(mdp, w, b)
-    if mode != "trajectory":
+    if mode == "literal":  # the baseline shifts every path equally: plan on the raw reward
+        cells = _dp_path(mdp, _shifted_rewards(mdp, w, np.zeros(1))[0])
+        value = _objective(mdp, cells, w, b, mode)
+        return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
+    if mode == "per_step":
         cells = _dp_path(mdp, q.min(axis=0))
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)

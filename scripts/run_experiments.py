@@ -1,0 +1,368 @@
+#!/usr/bin/env python3
+"""Run the Lavaland experiments (IRD paper Figure 4 and the appendix factorial).
+
+    .venv/bin/python scripts/run_experiments.py [--trials N] [--out DIR] [--seed S]
+        [--workers W] [--scheduler tcp://HOST:PORT] [--via-ros] [--conditions C ...]
+        [--size N] [--horizon T] [--obs-dim D] [--num-samples K] [--beta B] ...
+
+Every condition x planner gets N seeded trials (trial i uses instance seed S + i, paired over
+conditions). One trial = one Lavaland instance: the literal plan, and per Z-approximation ONE
+posterior whose samples feed every IRD planner (ird_core.experiments.run_trial). Locally the
+trials run in a process pool (W workers, default = cores); with --scheduler on a Dask
+distributed cluster (same trial function). A trial is a pure function of its spec, so the
+numbers do not depend on W, the scheduler or completion order.
+
+Outputs in --out (default out/experiments): results.csv (one row per experiment x condition x
+planner), trials.csv (one row per trial x planner), results.md (tables + settings + wall
+time), figure4_lava.png (lava fraction per condition: literal / IRD Sample-Z / IRD MaxEnt-Z,
+95% Wilson error bars), factorial_<z>.png (per condition, granularity x baseline), run.json.
+
+--via-ros: instead, run a few trials (--trials, default 3 here) through the ROS graph's
+services (/world/generate, /ird/infer, /ird/plan) and compare the planned cells with direct
+library calls; exit status 1 on any disagreement.
+"""
+
+from __future__ import annotations
+
+import os
+
+# One BLAS thread per worker: the pool already uses every core.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+from ird_core import experiments as ex  # noqa: E402
+from ird_core.lavaland import CONDITIONS  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+Z_LABEL = {"sample_z": "IRD Sample-Z", "maxent_z": "IRD MaxEnt-Z"}
+
+
+# --------------------------------------------------------------------------- progress
+
+
+class Progress:
+    """A plain text progress bar on stderr (carriage return on a TTY, lines otherwise)."""
+
+    def __init__(self, total: int, stream=sys.stderr, width: int = 30) -> None:
+        self.total, self.done, self.stream, self.width = total, 0, stream, width
+        self.t0 = time.monotonic()
+        self.tty = stream.isatty()
+        self._last_line = -1.0
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        elapsed = time.monotonic() - self.t0
+        eta = elapsed / self.done * (self.total - self.done) if self.done else math.nan
+        filled = int(self.width * self.done / max(self.total, 1))
+        text = (f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} trials "
+                f"{elapsed:6.0f} s elapsed, ETA {eta:5.0f} s")
+        if self.tty:
+            self.stream.write("\r" + text)
+            if self.done == self.total:
+                self.stream.write("\n")
+        elif self.done == self.total or elapsed - self._last_line >= 10:
+            self.stream.write(text + "\n")
+            self._last_line = elapsed
+        self.stream.flush()
+
+
+# --------------------------------------------------------------------------- running
+
+
+def run_local(specs: list[ex.TrialSpec], workers: int, progress: Progress | None = None) -> list[ex.TrialResult]:
+    """Run specs in a process pool; results in spec order."""
+    out: list[list[ex.TrialResult] | None] = [None] * len(specs)
+    if workers <= 1:
+        for i, spec in enumerate(specs):
+            out[i] = ex.run_trial(spec)
+            if progress:
+                progress.update()
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(ex.run_trial, s): i for i, s in enumerate(specs)}
+            for fut in as_completed(futures):
+                out[futures[fut]] = fut.result()
+                if progress:
+                    progress.update()
+    return [r for rs in out for r in rs]  # type: ignore[union-attr]
+
+
+def run_dask(specs: list[ex.TrialSpec], client, progress: Progress | None = None) -> list[ex.TrialResult]:
+    """Run specs on a Dask distributed client; results in spec order."""
+    from distributed import as_completed as dask_completed
+
+    futures = client.map(ex.run_trial, specs, pure=False)
+    index = {f.key: i for i, f in enumerate(futures)}
+    out: list = [None] * len(specs)
+    for fut in dask_completed(futures):
+        out[index[fut.key]] = fut.result()
+        if progress:
+            progress.update()
+    return [r for rs in out for r in rs]
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:.6g}"
+    return str(v)
+
+
+def write_trials_csv(path: Path, results: list[ex.TrialResult]) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(ex.TRIAL_COLUMNS)
+        for r in results:
+            row = dataclasses.asdict(r)
+            row["cells"] = " ".join(f"{a},{b}" for a, b in r.cells)
+            w.writerow([_fmt(row[c]) if not isinstance(row[c], bool) else int(row[c]) for c in ex.TRIAL_COLUMNS])
+
+
+def write_results_csv(path: Path, summaries: list[ex.CellSummary]) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(ex.RESULT_COLUMNS)
+        for s in summaries:
+            row = s.row()
+            w.writerow([_fmt(row[c]) for c in ex.RESULT_COLUMNS])
+
+
+def _pct(x: float) -> str:
+    return "nan" if math.isnan(x) else f"{100 * x:.0f}"
+
+
+def markdown_table(summaries: list[ex.CellSummary], experiment: str) -> str:
+    lines = ["| condition | planner | trials | lava % [95% CI] | target % [95% CI] | mean true return [95% CI] | fallbacks | R-hat>1.1 |",
+             "|---|---|---|---|---|---|---|---|"]
+    for s in summaries:
+        if s.experiment != experiment:
+            continue
+        lines.append(
+            f"| {s.condition} | {s.planner} | {s.trials} | {_pct(s.lava_fraction)} [{_pct(s.lava_ci_low)}, {_pct(s.lava_ci_high)}] "
+            f"| {_pct(s.target_fraction)} [{_pct(s.target_ci_low)}, {_pct(s.target_ci_high)}] "
+            f"| {s.mean_true_return:.2f} [{s.return_ci_low:.2f}, {s.return_ci_high:.2f}] | {s.fallbacks} | {s.nonconverged} |")
+    return "\n".join(lines)
+
+
+def claim_check(summaries: list[ex.CellSummary]) -> list[str]:
+    """The paper's claims, checked on the main experiment."""
+    main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
+    conditions = sorted({c for c, _ in main}, key=lambda c: CONDITIONS.index(c))
+    lines = []
+    for z in ex.Z_METHODS:
+        for c in conditions:
+            lit, ird = main.get((c, "literal")), main.get((c, f"ird_{z}"))
+            if lit is None or ird is None:
+                continue
+            below = ird.lava_fraction < lit.lava_fraction
+            disjoint = ird.lava_ci_high < lit.lava_ci_low
+            lines.append(f"- {Z_LABEL[z]}, {c}: IRD lava {_pct(ird.lava_fraction)}% vs literal {_pct(lit.lava_fraction)}%: "
+                         f"{'below' if below else 'NOT below'}, 95% intervals {'do not overlap' if disjoint else 'OVERLAP'}")
+    return lines
+
+
+def write_markdown(path: Path, summaries, settings: dict, wall: float, command: str, fallbacks_note: str) -> None:
+    text = [
+        "# Lavaland experiment results",
+        "",
+        f"Command: `{command}`",
+        "",
+        f"Wall time: {wall:.1f} s ({settings['workers']} worker(s), {settings['scheduler'] or 'local process pool'}).",
+        "",
+        "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items() if k not in ("workers", "scheduler")),
+        "",
+        f"Main IRD planner: granularity `{ex.MAIN_GRANULARITY}`, baseline `{ex.MAIN_BASELINE}` (exact DP on all posterior samples).",
+        "Intervals: 95% Wilson score for fractions, 95% Student-t for the mean true return.",
+        "",
+        "## Figure 4: literal vs IRD",
+        "",
+        markdown_table(summaries, "main"),
+        "",
+        "Claim check (IRD lava below literal, non-overlapping 95% intervals):",
+        "",
+        *claim_check(summaries),
+        "",
+        "## Appendix factorial: granularity x baseline (same posterior per trial and Z-approximation)",
+        "",
+        fallbacks_note,
+        "",
+        markdown_table(summaries, "factorial"),
+        "",
+    ]
+    path.write_text("\n".join(text))
+
+
+def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    files = []
+    main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
+    conditions = [c for c in CONDITIONS if (c, "literal") in main]
+    planners = [("literal", "Literal", "#c44e52")] + [(f"ird_{z}", Z_LABEL[z], col)
+                                                     for z, col in zip(ex.Z_METHODS, ("#4c72b0", "#55a868"))]
+    planners = [p for p in planners if any((c, p[0]) in main for c in conditions)]
+    fig, ax = plt.subplots(figsize=(7.5, 3.4), dpi=110)
+    width = 0.8 / len(planners)
+    x = np.arange(len(conditions))
+    for j, (key, label, colour) in enumerate(planners):
+        ss = [main[c, key] for c in conditions]
+        y = np.array([s.lava_fraction for s in ss])
+        err = np.array([[s.lava_fraction - s.lava_ci_low for s in ss], [s.lava_ci_high - s.lava_fraction for s in ss]])
+        ax.bar(x + (j - (len(planners) - 1) / 2) * width, y, width, yerr=err, capsize=3, label=label, color=colour)
+    ax.set_xticks(x, [c.replace("_", " ") for c in conditions])
+    ax.set_ylabel("fraction of runs touching lava")
+    ax.set_ylim(0, 1)
+    n = main[conditions[0], "literal"].trials if conditions else 0
+    ax.set_title(f"Lavaland: lava encounters ({n} trials per bar, 95% Wilson CI)")
+    ax.legend(frameon=False, ncol=len(planners), loc="upper left")
+    ax.spines[["top", "right"]].set_visible(False)
+    fig.tight_layout()
+    path = out / "figure4_lava.png"
+    fig.savefig(path)
+    plt.close(fig)
+    files.append(path)
+
+    fact = {(s.condition, s.z_approx, s.granularity, s.baseline): s for s in summaries if s.experiment == "factorial"}
+    colours = {"initial_state": "#8172b2", "training_features": "#4c72b0", "log_z": "#ccb974"}
+    for z in ex.Z_METHODS:
+        if not any(k[1] == z for k in fact):
+            continue
+        fig, axes = plt.subplots(1, len(conditions), figsize=(2.3 * len(conditions) + 0.8, 3.0), dpi=110, sharey=True)
+        axes = np.atleast_1d(axes)
+        for ax, c in zip(axes, conditions):
+            for gi, g in enumerate(ex.GRANULARITIES):
+                for bi, b in enumerate(ex.BASELINES):
+                    s = fact.get((c, z, g, b))
+                    if s is None:
+                        continue
+                    pos = gi * (len(ex.BASELINES) + 1) + bi
+                    ax.bar(pos, s.lava_fraction, 0.9, color=colours[b],
+                           yerr=[[s.lava_fraction - s.lava_ci_low], [s.lava_ci_high - s.lava_fraction]], capsize=2,
+                           label=b if (gi == 0 and c == conditions[0]) else None)
+            ax.set_xticks([1, 1 + len(ex.BASELINES) + 1], ["per step", "trajectory"])
+            ax.set_title(c.replace("_", " "), fontsize=9)
+            ax.spines[["top", "right"]].set_visible(False)
+        axes[0].set_ylabel("fraction touching lava")
+        axes[0].set_ylim(0, 1)
+        fig.legend(loc="upper center", ncol=3, frameon=False, fontsize=8)
+        fig.suptitle(f"{Z_LABEL[z]}: min granularity x reward baseline", y=0.02, va="bottom", fontsize=9)
+        fig.tight_layout(rect=(0, 0.06, 1, 0.9))
+        path = out / f"factorial_{z}.png"
+        fig.savefig(path)
+        plt.close(fig)
+        files.append(path)
+    return files
+
+
+# --------------------------------------------------------------------------- ROS
+
+
+def run_via_ros(args, settings: dict) -> int:
+    """Run trials through the graph's services and compare with direct library calls."""
+    print("--via-ros: not implemented yet", file=sys.stderr)
+    return 1
+
+
+# --------------------------------------------------------------------------- main
+
+
+def build_parser() -> argparse.ArgumentParser:
+    d = ex.TrialSpec("side_effects", 0)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--trials", type=int, default=None, help="trials per condition (default 100; 3 with --via-ros)")
+    p.add_argument("--out", type=Path, default=ROOT / "out" / "experiments")
+    p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--via-ros", action="store_true")
+    p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS)
+    p.add_argument("--z-methods", nargs="+", default=list(ex.Z_METHODS), choices=ex.Z_METHODS)
+    p.add_argument("--no-factorial", action="store_true", help="main experiment only")
+    p.add_argument("--size", type=int, default=d.size)
+    p.add_argument("--horizon", type=int, default=d.horizon)
+    p.add_argument("--obs-dim", type=int, default=d.obs_dim)
+    p.add_argument("--num-samples", type=int, default=d.num_samples)
+    p.add_argument("--beta", type=float, default=d.beta)
+    p.add_argument("--prior-sigma", type=float, default=d.prior_sigma)
+    p.add_argument("--num-chains", type=int, default=d.num_chains)
+    p.add_argument("--warmup", type=int, default=d.warmup)
+    p.add_argument("--thin", type=int, default=d.thin)
+    p.add_argument("--max-leapfrog", type=int, default=d.max_leapfrog)
+    p.add_argument("--num-proxy-samples", type=int, default=d.num_proxy_samples)
+    p.add_argument("--traj-samples", type=int, default=d.traj_samples)
+    p.add_argument("--traj-time-limit", type=float, default=d.traj_time_limit)
+    return p
+
+
+def spec_settings(args) -> dict:
+    return dict(size=args.size, horizon=args.horizon, obs_dim=args.obs_dim, num_samples=args.num_samples,
+                beta=args.beta, prior_sigma=args.prior_sigma, num_chains=args.num_chains, warmup=args.warmup, thin=args.thin,
+                max_leapfrog=args.max_leapfrog, num_proxy_samples=args.num_proxy_samples,
+                traj_samples=args.traj_samples, traj_time_limit=args.traj_time_limit,
+                z_methods=tuple(args.z_methods), factorial=not args.no_factorial)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    settings = spec_settings(args)
+    if args.via_ros:
+        return run_via_ros(args, settings)
+    trials = 100 if args.trials is None else args.trials
+    if trials < 1:
+        print("--trials must be >= 1", file=sys.stderr)
+        return 2
+    specs = ex.make_specs(args.conditions, trials, args.seed, **settings)
+    args.out.mkdir(parents=True, exist_ok=True)
+    command = "python scripts/run_experiments.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    print(f"{len(specs)} trials ({trials} per condition x {len(args.conditions)} conditions), "
+          f"{'Dask ' + args.scheduler if args.scheduler else f'{args.workers} local worker(s)'}", file=sys.stderr)
+    progress = Progress(len(specs))
+    t0 = time.monotonic()
+    if args.scheduler:
+        from distributed import Client
+
+        with Client(args.scheduler) as client:
+            results = run_dask(specs, client, progress)
+    else:
+        results = run_local(specs, args.workers, progress)
+    wall = time.monotonic() - t0
+    summaries = ex.aggregate(results)
+    write_trials_csv(args.out / "trials.csv", results)
+    write_results_csv(args.out / "results.csv", summaries)
+    traj = [r for r in results if r.granularity == "trajectory"]
+    note = (f"Trajectory plans use the first {args.traj_samples} posterior samples (exact solver, "
+            f"{args.traj_time_limit:g} s limit per plan); {sum(r.fallback for r in traj)} of {len(traj)} trajectory plans "
+            f"hit the limit and fell back to the per-step plan of the same samples (column `fallbacks`). "
+            f"Per-step plans use all {args.num_samples} samples.") if traj else ""
+    shown = dict(settings, trials=trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+    write_markdown(args.out / "results.md", summaries, shown, wall, command, note)
+    figures = plot_figures(args.out, summaries)
+    (args.out / "run.json").write_text(json.dumps({"command": command, "wall_seconds": wall, "settings": shown,
+                                                   "figures": [f.name for f in figures]}, indent=2, default=str))
+    print(markdown_table(summaries, "main"))
+    print("\n".join(claim_check(summaries)))
+    print(f"wall time {wall:.1f} s; outputs in {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
