@@ -86,11 +86,11 @@ class TrialSpec:
     horizon: int = 12
     obs_dim: int = 10
     num_samples: int = 64
-    beta: float = 1.0
+    beta: float = 50.0
     prior_sigma: float = 1.0
     num_chains: int = 4
     warmup: int = 50
-    thin: int = 3
+    thin: int = 4
     max_leapfrog: int = 16
     num_proxy_samples: int = 100
     traj_samples: int = 10
@@ -220,7 +220,9 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     denom = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return low, high
 
 
 def t_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:

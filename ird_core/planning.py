@@ -336,7 +336,8 @@ def plan_path(
     _check_choice(baseline, "baseline", BASELINES)
     if solver is not None:
         _check_choice(solver, "solver", SOLVERS[mode])
-    if time_limit is not None and not (isinstance(time_limit, (int, float)) and time_limit > 0):
+    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
+                                   or not time_limit > 0):
         raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
     w = _check_weights(weights, mdp.num_features)
     if mode == "literal" and len(w) != 1:
@@ -405,8 +406,9 @@ def _successors(mdp: GridMDP) -> np.ndarray:
 def _reduce_samples(q: np.ndarray) -> np.ndarray:
     """Indices of the samples that matter for ``min_i sum_t q_i(s_t)``.
 
-    Merges identical rows, then drops a sample ``i`` when another kept sample ``j`` has
-    ``q_j <= q_i`` on every cell (``i`` is then never below ``j`` on any path).
+    Merges identical rows, then drops a sample ``i`` when another distinct sample ``j`` has
+    ``q_j <= q_i`` on every cell (``i`` is then never below ``j`` on any path). The minimal
+    rows survive, and every dropped row lies above one of them.
 
     Args:
         q: ``(K, R)`` shifted rewards on the reachable cells.
@@ -443,6 +445,17 @@ def _to_go(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
     for t in range(mdp.horizon - 1, -1, -1):
         values[t] = np.concatenate([rewards + values[t + 1], sentinel], axis=1)[:, succ].max(axis=2)
     return values
+
+
+def _best_returns(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
+    """Each row's own optimum ``max_xi sum_t rewards[j, s_t]``; ``(m, S)`` -> ``(m,)``.
+    The same recursion as :func:`_to_go`, keeping one time step in memory."""
+    succ = _successors(mdp)
+    values = np.zeros_like(rewards)
+    sentinel = np.full((len(rewards), 1), -np.inf)
+    for _ in range(mdp.horizon):
+        values = np.concatenate([rewards + values, sentinel], axis=1)[:, succ].max(axis=2)
+    return values[:, mdp.start_state] + rewards[:, mdp.start_state]
 
 
 def _come_from(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
@@ -578,6 +591,8 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
         _OutOfTime: ``time.monotonic()`` passed ``deadline``.
     """
     k = len(q)
+    if (mdp.horizon + 1) * mdp.num_states * (k + len(multipliers)) > _LABEL_BUDGET:
+        raise _BudgetExceeded(f"bound tables of {k + len(multipliers)} rows over {mdp.horizon + 1} steps")
     succ = successor_table(mdp.height, mdp.width)
     per_sample = _to_go(mdp, q).transpose(0, 2, 1)  # (T+1, S, K)
     combined = _to_go(mdp, multipliers @ q).transpose(0, 2, 1)  # (T+1, S, m)
@@ -641,7 +656,7 @@ def _plan_trajectory(
     reach = np.flatnonzero(dist <= mdp.horizon)
     q = q_all[_reduce_samples(q_all[:, reach])]
     slack = _CERTIFY_RTOL * (mdp.horizon + 1) * float(np.abs(q[:, reach]).max())
-    own_best = _to_go(mdp, q)[0][:, mdp.start_state] + q[:, mdp.start_state]
+    own_best = _best_returns(mdp, q)
     seeds = [_path_states(mdp, q.min(axis=0)), _path_states(mdp, q[int(np.argmin(own_best))])]
     relaxation = _lp_relaxation(mdp, q, seeds, tol=slack)
     upper = min(relaxation.bound, float(own_best.min()))

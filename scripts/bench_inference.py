@@ -37,13 +37,13 @@ def progress_printer(label: str):
 
 def naive_seconds_per_weight(model: inference.PosteriorModel, weights: np.ndarray, kernel: str) -> float:
     """Seconds per weight of the sampler's evaluation done one ``(1, d)`` weight per call."""
-    start = time.perf_counter()
+    start = time.process_time()
     for w in weights:
         if kernel == "rwm":
             model.log_density(w[None])
         else:
             model.log_density_and_grad(w[None])
-    return (time.perf_counter() - start) / len(weights)
+    return (time.process_time() - start) / len(weights)
 
 
 def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> None:
@@ -87,10 +87,10 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = []
     for method in args.methods:
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         post = inference.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples, args.seed,
                                           progress=progress_printer(method))
-        seconds = time.perf_counter() - start
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
         model = inference.make_posterior_model(instance.proxy_weights, mdp, args.beta, method, seed=args.seed)
         per_call = post.num_chains * (2 if method == "sample_z" and post.kernel != "rwm" else 1)
         weight_evals = post.num_evaluations * per_call
@@ -98,22 +98,23 @@ def main(argv: list[str] | None = None) -> int:
         if args.full_naive:
             pool = post.samples[np.arange(post.num_evaluations * post.num_chains) % len(post.samples)]
         naive = naive_seconds_per_weight(model, pool, post.kernel) * post.num_evaluations * post.num_chains
-        rows.append((method, seconds, post, weight_evals, naive))
+        rows.append((method, seconds, cpu, post, weight_evals, naive))
 
     print()
-    print(f"{'method':<9} {'kernel':<6} {'time s':>7} {'calls':>6} {'weight evals':>12} {'accept':>6} {'R-hat':>6} "
-          f"{'ESS':>6} {'step':>6} {'L':>3} {'chains':>6} {'warmup':>6} {'thin':>4} {'naive s':>8} {'speed-up':>8}")
-    for method, seconds, post, weight_evals, naive in rows:
+    print(f"{'method':<9} {'kernel':<6} {'wall s':>7} {'CPU s':>6} {'calls':>6} {'weight evals':>12} {'accept':>6} {'R-hat':>6} "
+          f"{'ESS':>6} {'step':>6} {'L':>3} {'chains':>6} {'warmup':>6} {'thin':>4} {'naive CPU s':>11} {'speed-up':>8}")
+    for method, seconds, cpu, post, weight_evals, naive in rows:
         steps = max(1, int(np.clip(round(inference.DEFAULT_TRAJECTORY_LENGTH / post.step_size), 1,
                                    inference.DEFAULT_MAX_LEAPFROG[method]))) if post.kernel == "hmc" else 1
-        print(f"{method:<9} {post.kernel:<6} {seconds:>7.1f} {post.num_evaluations:>6d} {weight_evals:>12d} "
+        print(f"{method:<9} {post.kernel:<6} {seconds:>7.1f} {cpu:>6.1f} {post.num_evaluations:>6d} {weight_evals:>12d} "
               f"{post.acceptance_rate:>6.2f} {post.r_hat_max:>6.3f} {post.ess_min:>6.0f} {post.step_size:>6.3f} "
-              f"{steps:>3d} {post.num_chains:>6d} {post.warmup:>6d} {post.thin:>4d} {naive:>8.1f} "
-              f"{naive / seconds:>7.1f}x")
+              f"{steps:>3d} {post.num_chains:>6d} {post.warmup:>6d} {post.thin:>4d} {naive:>11.1f} "
+              f"{naive / cpu:>7.1f}x")
     print("calls: batched log-density(+gradient) calls of the sampler (warm-up included; the Laplace "
           "approximation's few calls are in the time but not counted).")
     print("naive: the same sampler evaluations, one weight vector per MDP call "
-          + ("(all run)." if args.full_naive else f"(extrapolated from {args.naive_calls} timed calls)."))
+          + ("(all run)" if args.full_naive else f"(extrapolated from {args.naive_calls} timed calls)")
+          + "; speed-up = naive CPU / batched CPU (CPU time: other jobs on a shared machine inflate wall time).")
     return 0
 
 

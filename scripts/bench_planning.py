@@ -103,9 +103,10 @@ def naive_trajectory_milp(mdp: GridMDP, weights: np.ndarray, b: np.ndarray, limi
     n_edges = len(e_time)
     ids = np.arange(n_edges)
     # Flow rows: node (t, s) for t = 0..T-1: out - in = [t == 0 and s == start].
-    rows = np.concatenate([e_time * s_count + e_src, (e_time[e_time >= 1] * s_count + e_dst[e_time < horizon - 1])])
-    cols = np.concatenate([ids, ids[e_time < horizon - 1]])
-    vals = np.concatenate([np.ones(n_edges), -np.ones(int((e_time < horizon - 1).sum()))])
+    inner = e_time < horizon - 1  # edges entering a node that has out-edges
+    rows = np.concatenate([e_time * s_count + e_src, (e_time[inner] + 1) * s_count + e_dst[inner]])
+    cols = np.concatenate([ids, ids[inner]])
+    vals = np.concatenate([np.ones(n_edges), -np.ones(int(inner.sum()))])
     flow = sp.csr_matrix((vals, (rows, cols)), shape=(horizon * s_count, n_edges + 1))
     supply = np.zeros(horizon * s_count)
     supply[mdp.start_state] = 1.0
@@ -151,14 +152,15 @@ def bench_per_step(repeats: int, with_log_z: bool) -> None:
         note = "log Z of 1000 samples dominates" if baseline == "log_z" else ""
         record("per_step", f"dp/{baseline}", case, horizon, k, d, seconds,
                None if baseline == "log_z" else 0.5, plan.objective, naive, note)
-        record("per_step", f"naive-loop/{baseline}", case, horizon, k, d, naive_seconds, None, naive, None)
+        record("per_step", f"naive-loop/{baseline}", case, horizon, k, d, naive_seconds, None, naive, None,
+               "baselines precomputed")
 
 
 def bench_trajectory(repeats: int, seeds: int, naive_limit: float) -> None:
     size, horizon, k, d = 15, 30, 50, 50
     for kind, make in (("gaussian", gaussian_map), ("lavaland-like", lavaland_like_map)):
         for baseline in ("initial_state", "none"):
-            times, milp_times, notes = [], [], []
+            times, milp_times, objectives, solvers = [], [], [], set()
             for seed in range(seeds):
                 rng = np.random.default_rng(seed)
                 mdp = GridMDP(make(rng, size, d), (size // 2, size // 2), horizon)
@@ -169,15 +171,16 @@ def bench_trajectory(repeats: int, seeds: int, naive_limit: float) -> None:
                     lambda: planning.plan_path(mdp, weights, "trajectory", baseline, solver="milp-highs",
                                                time_limit=naive_limit), 1)
                 milp_times.append(milp_seconds)
-                if abs(milp_plan.objective - plan.objective) > 1e-9 * max(1.0, abs(plan.objective)):
-                    MISMATCHES.append(f"trajectory/{kind}/{baseline}/seed {seed}: label-bb "
-                                      f"{plan.objective!r} != milp {milp_plan.objective!r}")
-                notes.append(plan.solver)
+                objectives.append((plan.objective, milp_plan.objective))
+                solvers.add(plan.solver)
             case = f"{size}x{size} {kind} ({seeds} seeds)"
-            record("trajectory", f"{notes[0]}/{baseline}", case, horizon, k, d, max(times), 10.0, None, None,
+            default = "/".join(sorted(solvers))
+            record("trajectory", f"{default}/{baseline}", case, horizon, k, d, max(times), 10.0, None, None,
                    f"median {statistics.median(times):.3f} s; worst seed shown")
-            record("trajectory", f"milp-highs/{baseline}", case, horizon, k, d, max(milp_times), None, None, None,
-                   f"median {statistics.median(milp_times):.3f} s; bound-pruned graph")
+            # The two exact solvers must agree on every seed.
+            worst = max(objectives, key=lambda pair: abs(pair[0] - pair[1]))
+            record("trajectory", f"milp-highs/{baseline}", case, horizon, k, d, max(milp_times), None,
+                   worst[1], worst[0], f"median {statistics.median(milp_times):.3f} s; bound-pruned graph")
     # The naive MILP on one instance (seed 0, Gaussian, initial_state).
     rng = np.random.default_rng(0)
     mdp = GridMDP(gaussian_map(rng, size, d), (size // 2, size // 2), horizon)

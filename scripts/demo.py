@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
+import dataclasses
 import datetime as dt
 import os
 import sys
@@ -37,7 +38,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from ird_core import lavaland  # noqa: E402
-from ird_core.experiments import TrialSpec, run_trial  # noqa: E402
+from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec, run_trial  # noqa: E402
 from ird_core.render import save_mission_figure  # noqa: E402
 
 #: The demo's default seed. Chosen honestly: the demo prints, over seeds 0-19, how often each
@@ -66,30 +67,34 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--method", default="maxent_z", choices=("maxent_z", "sample_z"))
     p.add_argument("--beta", type=float, default=None, help="designer rationality (default: the experiments')")
     p.add_argument("--num-samples", type=int, default=None, help="posterior samples (default: the experiments')")
-    p.add_argument("--mode", default=None, help="IRD planner granularity: per_step | trajectory")
-    p.add_argument("--baseline", default=None, help="reward baseline: none | initial_state | training_features | log_z")
     p.add_argument("--rate", type=float, default=10.0, help="Rob's speed, cells per second")
     p.add_argument("--out", default=str(REPO / "out" / "demo"), help="output folder (a run folder is made inside)")
     p.add_argument("--no-survey", action="store_true", help="skip the 20-seed survey")
     return p.parse_args()
 
 
-def write_params(run_dir: Path, args: argparse.Namespace) -> Path:
-    """The graph's parameter file with this demo's world and Rob's speed."""
+def write_params(run_dir: Path, args: argparse.Namespace, spec: TrialSpec) -> Path:
+    """The graph's parameter file with the experiments' world and sampler settings."""
     params = yaml.safe_load((REPO / "msgs_config" / "params" / "graph.yaml").read_text())
     world = params["world"]["ros__parameters"]
-    world["condition"] = args.condition
-    world["seed"] = args.seed
+    world.update(condition=args.condition, seed=args.seed, height=spec.size, width=spec.size,
+                 horizon=spec.horizon, obs_dim=spec.obs_dim)
+    params["inference"]["ros__parameters"].update(
+        num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
+        num_proxy_samples=spec.num_proxy_samples)
     params["rob"]["ros__parameters"]["rate_hz"] = float(args.rate)
     path = run_dir / "graph.yaml"
     path.write_text(yaml.safe_dump(params, sort_keys=False))
     return path
 
 
-def survey(args: argparse.Namespace, spec: TrialSpec) -> list:
-    """Literal vs IRD over the survey seeds, straight from ird_core (runs beside the graph)."""
-    specs = [TrialSpec(**{**spec.__dict__, "seed": s}) for s in SURVEY_SEEDS]
-    return [run_trial(s) for s in specs]
+def survey(spec: TrialSpec) -> dict[str, int]:
+    """Seeds on which each planner touches lava, straight from ird_core (runs beside the graph)."""
+    counts: dict[str, int] = {}
+    for seed in SURVEY_SEEDS:
+        for result in run_trial(dataclasses.replace(spec, seed=seed)):
+            counts[result.planner] = counts.get(result.planner, 0) + int(result.touched_lava)
+    return counts
 
 
 def main() -> int:
@@ -109,21 +114,19 @@ def main() -> int:
     base = TrialSpec(condition=args.condition, seed=args.seed)
     beta = args.beta if args.beta is not None else base.beta
     num_samples = args.num_samples if args.num_samples is not None else base.num_samples
-    mode = args.mode or base.granularity
-    baseline = args.baseline or base.baseline
-    spec = TrialSpec(**{**base.__dict__, "beta": beta, "num_samples": num_samples,
-                        "granularity": mode, "baseline": baseline, "z_methods": (args.method,),
-                        "factorial": False})
+    mode, baseline = MAIN_GRANULARITY, MAIN_BASELINE
+    spec = dataclasses.replace(base, beta=beta, num_samples=num_samples, z_methods=(args.method,),
+                               factorial=False)
 
     run_dir = Path(args.out) / dt.datetime.now().strftime("run-%Y%m%d-%H%M%S")
     run_dir.mkdir(parents=True, exist_ok=False)
-    params = write_params(run_dir, args)
+    params = write_params(run_dir, args, spec)
     t_start = time.monotonic()
     print(f"IRD demo: condition {args.condition}, seed {args.seed}, {args.method}, beta {beta}, "
           f"{num_samples} samples, IRD planner {mode}/{baseline}\noutput: {run_dir}\n", flush=True)
 
     pool = concurrent.futures.ProcessPoolExecutor(max_workers=1)
-    survey_future = None if args.no_survey else pool.submit(survey, args, spec)
+    survey_future = None if args.no_survey else pool.submit(survey, spec)
 
     outcomes: list[Outcome] = []
     risk = None
@@ -142,7 +145,8 @@ def main() -> int:
                 node.destroy_node()
     bag_dir = run_dir / "bag"
 
-    inst = lavaland.make_instance(args.condition, args.seed)
+    inst = lavaland.make_instance(args.condition, args.seed, size=spec.size, horizon=spec.horizon,
+                                  obs_dim=spec.obs_dim)
     picture = run_dir / "mission.png"
     save_mission_figure(picture, inst.train_labels, inst.test_labels,
                         {o.label: o.cells for o in outcomes}, risk_map=risk,
@@ -160,11 +164,11 @@ def main() -> int:
         print("\nBag " + str(bag_dir) + ": " + ", ".join(f"{t} {n}" for t, n in sorted(counts.items())))
 
     if survey_future is not None:
-        results = survey_future.result()
-        lit = sum(r.literal.touched_lava for r in results)
-        ird = sum(r.ird[args.method].touched_lava for r in results)
-        print(f"\nOver seeds {SURVEY_SEEDS[0]}-{SURVEY_SEEDS[-1]} ({args.condition}, same settings): "
-              f"literal touches lava in {lit}/{len(results)}, IRD in {ird}/{len(results)}.")
+        counts = survey_future.result()
+        n = len(SURVEY_SEEDS)
+        print(f"\nOver seeds {SURVEY_SEEDS[0]}-{SURVEY_SEEDS[-1]} ({args.condition}, same settings, ird_core "
+              f"directly): literal touches lava on {counts['literal']}/{n}, "
+              f"IRD on {counts['ird_' + args.method]}/{n}.")
     pool.shutdown()
     print(f"\npicture: {picture}\nbag:     {bag_dir}\ntotal time {time.monotonic() - t_start:.0f} s")
     return 0
@@ -202,7 +206,7 @@ def run_mission(node, args, spec, conv, names, call_service, receive_messages, s
     outcomes = []
     for label, mode, baseline, weights in (
         ("literal", "literal", "none", []),
-        (f"IRD {spec.granularity}", spec.granularity, spec.baseline, list(post.samples)),
+        (f"IRD {MAIN_GRANULARITY}", MAIN_GRANULARITY, MAIN_BASELINE, list(post.samples)),
     ):
         req = PlanPath.Request()  # map empty = the latest perceived test map
         req.start_row, req.start_col, req.horizon = proxy.test_start_row, proxy.test_start_col, proxy.test_horizon

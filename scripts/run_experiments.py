@@ -225,7 +225,7 @@ def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
     for j, (key, label, colour) in enumerate(planners):
         ss = [main[c, key] for c in conditions]
         y = np.array([s.lava_fraction for s in ss])
-        err = np.array([[s.lava_fraction - s.lava_ci_low for s in ss], [s.lava_ci_high - s.lava_fraction for s in ss]])
+        err = np.clip([[s.lava_fraction - s.lava_ci_low for s in ss], [s.lava_ci_high - s.lava_fraction for s in ss]], 0, 1)
         ax.bar(x + (j - (len(planners) - 1) / 2) * width, y, width, yerr=err, capsize=3, label=label, color=colour)
     ax.set_xticks(x, [c.replace("_", " ") for c in conditions])
     ax.set_ylabel("fraction of runs touching lava")
@@ -255,7 +255,8 @@ def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
                         continue
                     pos = gi * (len(ex.BASELINES) + 1) + bi
                     ax.bar(pos, s.lava_fraction, 0.9, color=colours[b],
-                           yerr=[[s.lava_fraction - s.lava_ci_low], [s.lava_ci_high - s.lava_fraction]], capsize=2,
+                           yerr=np.clip([[s.lava_fraction - s.lava_ci_low], [s.lava_ci_high - s.lava_fraction]], 0, 1),
+                           capsize=2,
                            label=b if (gi == 0 and c == conditions[0]) else None)
             ax.set_xticks([1, 1 + len(ex.BASELINES) + 1], ["per step", "trajectory"])
             ax.set_title(c.replace("_", " "), fontsize=9)

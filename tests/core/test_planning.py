@@ -123,6 +123,25 @@ def test_property_trajectory_matches_brute_force(seed: int, integer: bool, dupli
         check_optimal(mdp, weights, "trajectory", "training_features", reference, plan)
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_dominated_samples_are_dropped_without_changing_the_plan(seed: int) -> None:
+    # A constant feature lets a sample's reward drop by 1 on every cell: the lowered copy
+    # dominates (is below) the original, which can then never be the minimum.
+    mdp, weights, _ = random_case(seed, integer=False)
+    features = np.concatenate([mdp.features, np.ones(mdp.features.shape[:2] + (1,))], axis=2)
+    mdp = mdp.with_features(features)
+    weights = np.concatenate([weights, np.zeros((len(weights), 1))], axis=1)
+    lowered = weights[:1] - np.eye(1, weights.shape[1], weights.shape[1] - 1)
+    both = np.concatenate([weights, lowered])
+    q = (features.reshape(mdp.num_states, -1) @ both.T).T
+    kept = P._reduce_samples(q)
+    assert 0 not in kept and len(both) - 1 in kept
+    for solver in TRAJECTORY_SOLVERS:
+        plan = P.plan_path(mdp, both, "trajectory", solver=solver)
+        check_optimal(mdp, both, "trajectory", "none", None, plan)
+        assert close(plan.objective, P.plan_path(mdp, both[1:], "trajectory", solver=solver).objective)
+
+
 @pytest.mark.parametrize("seed", range(24))
 def test_milp_on_the_reachable_graph_matches_brute_force(seed: int) -> None:
     # The MILP formulation itself, on the graph pruned by reachability only (plan_path also
@@ -369,6 +388,7 @@ def test_bad_inputs_name_the_argument() -> None:
         (lambda: P.plan_path(mdp, weights, "per_step", solver="milp-highs"), "solver"),
         (lambda: P.plan_path(mdp, weights, "trajectory", solver="gurobi"), "solver"),
         (lambda: P.plan_path(mdp, weights, "trajectory", time_limit=0), "time_limit"),
+        (lambda: P.plan_path(mdp, weights, "trajectory", time_limit=True), "time_limit"),
         (lambda: P.reward_baselines(mdp, weights, "average"), "baseline"),
         (lambda: P.path_objective(mdp, [(0, 0)], weights, "per_step"), "cells"),
         (lambda: P.path_objective(mdp, mdp.start, weights, "sum"), "mode"),
