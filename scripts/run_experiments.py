@@ -277,9 +277,160 @@ def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
 
 
 def run_via_ros(args, settings: dict) -> int:
-    """Run trials through the graph's services and compare with direct library calls."""
-    print("--via-ros: not implemented yet", file=sys.stderr)
-    return 1
+    """Run trials through the graph's services and compare with direct library calls.
+
+    Starts world, inference and planner with ``GraphLauncher`` (private domain, the world's
+    size/horizon/obs_dim set to this run's), then per trial: ``/world/generate`` (condition,
+    seed), waits for the matching latched world messages, checks them against
+    ``make_instance``, calls ``/ird/infer`` (trial i: condition i and Z method i, cycling) on the world's
+    training map and proxy, and ``/ird/plan`` for the literal plan (proxy test features, proxy
+    weights) and the main IRD plan (per_step / training_features on the node's posterior
+    samples). The node's plans are compared with ``planning.plan_path`` on the same samples
+    (and on the float32 features the messages carry); outcomes come from the direct instance.
+    Returns 1 on any disagreement. Also printed, for information only: whether the outcome
+    (lava, target) equals that of the direct ``run_trial`` of the same seed, whose posterior
+    comes from the same library but with the experiment's own seed derivation and sampler
+    settings (so its samples, unlike the plans above, are not expected to be identical).
+    """
+    import tempfile
+
+    import numpy as np
+    import yaml
+
+    from ird_core import lavaland, planning
+    from ird_core.mdp import GridMDP
+    from ird_ros import conversions as conv
+    from ird_ros import names
+    from ird_ros.launcher import GraphLauncher, default_params_file
+    from ird_ros.testing import call_service, ros_context, spin_until
+
+    trials = 3 if args.trials is None else args.trials
+    params = yaml.safe_load(Path(default_params_file()).read_text())
+    params["world"]["ros__parameters"].update(height=args.size, width=args.size, horizon=args.horizon,
+                                              obs_dim=args.obs_dim)
+    inf = params.setdefault("inference", {}).setdefault("ros__parameters", {})
+    inf.update(num_chains=args.num_chains, warmup=args.warmup, thin=args.thin)
+    tmp = tempfile.TemporaryDirectory(prefix="ird_via_ros_")
+    params_file = Path(tmp.name) / "graph.yaml"
+    params_file.write_text(yaml.safe_dump(params))
+    disagreements = 0
+    graph = GraphLauncher(nodes=["world", "inference", "planner"], params=params_file, private_domain=True,
+                          output="quiet")
+    graph.start()
+    try:
+        graph.wait_ready(120.0)
+        import rclpy  # noqa: F401
+        from ird_msgs.msg import FeatureGrid, ProxyReward
+        from ird_msgs.srv import GenerateWorld, InferReward, PlanPath
+
+        with ros_context(graph.domain_id) as ctx:
+            import rclpy.node
+
+            node = rclpy.node.Node("run_experiments_via_ros", context=ctx)
+            latest: dict[str, object] = {}
+            qos = names.latched_qos()
+            for topic, typ in ((names.TOPIC_TRAIN_FEATURES, FeatureGrid), (names.TOPIC_TEST_FEATURES, FeatureGrid),
+                               (names.TOPIC_TRAIN_PROXY_FEATURES, FeatureGrid), (names.TOPIC_PROXY, ProxyReward)):
+                node.create_subscription(typ, topic, lambda m, t=topic: latest.__setitem__(t, m), qos)
+            gen = node.create_client(GenerateWorld, names.SRV_GENERATE)
+            infer = node.create_client(InferReward, names.SRV_INFER)
+            plan = node.create_client(PlanPath, names.SRV_PLAN)
+            for client in (gen, infer, plan):
+                spin_until(node, client.service_is_ready, timeout=60, what=client.srv_name)
+
+            def stamp(msg) -> tuple[int, int]:
+                return msg.header.stamp.sec, msg.header.stamp.nanosec
+
+            for i in range(trials):
+                condition = args.conditions[i % len(args.conditions)]
+                seed = ex.trial_seed(args.seed, i)
+                method = settings["z_methods"][i % len(settings["z_methods"])]
+                req = GenerateWorld.Request(condition=condition, seed=seed)
+                res = call_service(node, gen, req, timeout=120)
+                if not res.success:
+                    print(f"[via-ros] /world/generate failed: {res.message}", file=sys.stderr)
+                    disagreements += 1
+                    continue
+
+                def complete() -> bool:
+                    proxy = latest.get(names.TOPIC_PROXY)
+                    if proxy is None or proxy.condition != condition or proxy.seed != seed:
+                        return False
+                    return all(t in latest and stamp(latest[t]) == stamp(proxy)
+                               for t in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES,
+                                         names.TOPIC_TRAIN_PROXY_FEATURES))
+
+                spin_until(node, complete, timeout=60, what=f"world messages of {condition} seed {seed}")
+                proxy_msg = latest[names.TOPIC_PROXY]
+                train_msg, test_msg = latest[names.TOPIC_TRAIN_FEATURES], latest[names.TOPIC_TEST_FEATURES]
+                proxy_train_msg = latest[names.TOPIC_TRAIN_PROXY_FEATURES]
+                inst = lavaland.make_instance(condition, seed, size=args.size, horizon=args.horizon, obs_dim=args.obs_dim)
+                train = conv.feature_grid_from_msg(train_msg).features.astype(np.float64)
+                test = conv.feature_grid_from_msg(test_msg).features.astype(np.float64)
+                world_ok = (np.allclose(train, inst.train_features, atol=1e-5, rtol=1e-6)
+                            and np.allclose(test, inst.test_features, atol=1e-5, rtol=1e-6)
+                            and np.allclose(proxy_msg.weights, inst.proxy_weights)
+                            and (proxy_msg.test_start_row, proxy_msg.test_start_col) == inst.test_start)
+                # inference through the node
+                ireq = InferReward.Request()
+                ireq.training_map = train_msg
+                ireq.start_row, ireq.start_col = (int(v) for v in inst.train_start)
+                ireq.horizon = inst.train_horizon
+                ireq.proxy_weights = [float(v) for v in inst.proxy_weights]
+                if inst.classifier is not None:
+                    ireq.proxy_map = proxy_train_msg
+                ireq.beta, ireq.method = float(args.beta), method
+                ireq.num_samples, ireq.seed, ireq.prior_sigma = args.num_samples, seed, float(args.prior_sigma)
+                ires = call_service(node, infer, ireq, timeout=600)
+                if not ires.success:
+                    print(f"[via-ros] /ird/infer failed: {ires.message}", file=sys.stderr)
+                    disagreements += 1
+                    continue
+                samples = np.asarray(ires.posterior.samples, dtype=np.float64).reshape(-1, inst.num_features)
+                reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+                test_mdp = GridMDP(test, inst.test_start, inst.test_horizon)
+                proxy_test = inst.proxy_test_features.astype(np.float32).astype(np.float64)
+                proxy_test_mdp = GridMDP(proxy_test, inst.test_start, inst.test_horizon)
+                checks = {
+                    "literal": (conv.feature_grid_to_msg(inst.proxy_test_features, inst.proxy_feature_names),
+                                inst.proxy_weights[None], "literal", "none", proxy_test_mdp),
+                    f"ird_{method}": (test_msg, samples, ex.MAIN_GRANULARITY, ex.MAIN_BASELINE, test_mdp),
+                }
+                spec = ex.TrialSpec(condition, seed, **dict(settings, z_methods=(method,), factorial=False))
+                direct_trial = {r.planner: r for r in ex.run_trial(spec)}
+                for label, (grid, weights, mode, baseline, mdp_) in checks.items():
+                    preq = PlanPath.Request()
+                    preq.map = grid
+                    preq.start_row, preq.start_col = (int(v) for v in inst.test_start)
+                    preq.horizon, preq.mode, preq.baseline, preq.label = inst.test_horizon, mode, baseline, label
+                    preq.weights = [float(v) for v in np.ravel(weights)]
+                    preq.reference_features = [float(v) for v in reference] if baseline == "training_features" else []
+                    pres = call_service(node, plan, preq, timeout=300)
+                    if not pres.success:
+                        print(f"[via-ros] /ird/plan ({label}) failed: {pres.message}", file=sys.stderr)
+                        disagreements += 1
+                        continue
+                    ros_cells = tuple(zip((int(r) for r in pres.rows), (int(c) for c in pres.cols)))
+                    direct = planning.plan_path(mdp_, weights, mode, baseline,
+                                                reference if baseline == "training_features" else None)
+                    same = ros_cells == tuple(direct.cells)
+                    out_ros = (lavaland.touches_lava(inst.test_labels, ros_cells),
+                               lavaland.reaches_target(inst.test_labels, ros_cells),
+                               lavaland.true_return(inst.test_labels, ros_cells))
+                    d = direct_trial[label]
+                    ok = same and world_ok
+                    disagreements += not ok
+                    print(f"[via-ros] {condition} seed {seed} {label}: world {'agrees' if world_ok else 'DIFFERS'}, "
+                          f"cells {'agree' if same else 'DISAGREE'} (lava {out_ros[0]}, target {out_ros[1]}, "
+                          f"return {out_ros[2]:.2f}); posterior r_hat {ires.posterior.r_hat_max:.3f}; "
+                          f"direct run_trial outcome {'same' if (d.touched_lava, d.reached_target) == out_ros[:2] else 'differs'} "
+                          f"(lava {d.touched_lava}, target {d.reached_target})")
+            node.destroy_node()
+    finally:
+        graph.stop()
+        tmp.cleanup()
+    print(f"[via-ros] {'all agree' if disagreements == 0 else f'{disagreements} disagreement(s)'}")
+    return 0 if disagreements == 0 else 1
 
 
 # --------------------------------------------------------------------------- main
