@@ -41,10 +41,11 @@ from ird_core import lavaland  # noqa: E402
 from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec, run_trial  # noqa: E402
 from ird_core.render import save_mission_figure  # noqa: E402
 
-#: The demo's default seed. Chosen honestly: the demo prints, over seeds 0-19, how often each
-#: plan touches lava; this seed is one where the literal plan does (the typical failure the
-#: paper is about), not a seed where IRD does something the survey says is rare.
-DEFAULT_SEED = 1
+#: The demo's default seed: the first one, and (with the default settings) one of the 5 of seeds
+#: 0-19 on which the literal plan walks into lava, the failure the paper is about. The demo
+#: prints the survey over those 20 seeds so this one mission is not mistaken for the average:
+#: on most seeds the literal plan is safe, and IRD reaches a target on about half of them.
+DEFAULT_SEED = 0
 SURVEY_SEEDS = tuple(range(20))
 
 
@@ -109,7 +110,7 @@ def main() -> int:
     from ird_ros import names
     from ird_ros.bag_reader import analyze
     from ird_ros.launcher import GraphLauncher
-    from ird_ros.testing import call_service, receive_messages, ros_context, spin_until
+    from ird_ros.testing import call_service, receive_messages, ros_context, spin_until, wait_for_publishers
 
     base = TrialSpec(condition=args.condition, seed=args.seed)
     beta = args.beta if args.beta is not None else base.beta
@@ -139,7 +140,7 @@ def main() -> int:
             node = rclpy.create_node("ird_demo", context=ctx)
             try:
                 outcomes, risk = run_mission(node, args, spec, conv, names, call_service,
-                                             receive_messages, spin_until, FeatureGrid, ProxyReward,
+                                             receive_messages, spin_until, wait_for_publishers, FeatureGrid, ProxyReward,
                                              RobStatus, InferReward, PlanPath, OccupancyGrid)
             finally:
                 node.destroy_node()
@@ -175,8 +176,12 @@ def main() -> int:
 
 
 def run_mission(node, args, spec, conv, names, call_service, receive_messages, spin_until,
-                FeatureGrid, ProxyReward, RobStatus, InferReward, PlanPath, OccupancyGrid):
+                wait_for_publishers, FeatureGrid, ProxyReward, RobStatus, InferReward, PlanPath, OccupancyGrid):
     """The client side of the mission: infer, plan twice, watch Rob. Returns outcomes, risk map."""
+    # Rob's status is a volatile stream: subscribe and wait for the match before any plan exists.
+    status: list = []
+    status_sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
+    wait_for_publishers(node, status_sub, timeout=60)
     proxy = receive_messages(node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
     train = receive_messages(node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
     request = InferReward.Request()
@@ -197,8 +202,6 @@ def run_mission(node, args, spec, conv, names, call_service, receive_messages, s
           f"acceptance {post.acceptance_rate:.2f}, R-hat {post.r_hat_max:.3f}, ESS {post.ess_min:.0f}",
           flush=True)
 
-    status: list = []
-    node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 50)
     risk_msgs: list = []
     node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, risk_msgs.append,
                              names.latched_qos() if hasattr(names, "latched_qos") else 1)
