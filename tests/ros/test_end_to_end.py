@@ -1,0 +1,137 @@
+"""The whole graph, started by the launcher, over real DDS in a private domain.
+
+One mission as a user runs it: the seeded /ird/infer answer equals ird_core's
+sample_posterior, the IRD plan equals plan_path, Rob executes it and judges it like
+ird_core.lavaland, and the recorder's bag holds exactly what was published; analyze_bag.py
+reads it without ROS.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ird_core import inference, lavaland, planning
+from ird_core.mdp import GridMDP
+
+REPO = Path(__file__).resolve().parents[2]
+SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
+
+
+@pytest.fixture(scope="module")
+def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    import rclpy
+    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
+    from ird_msgs.srv import InferReward, PlanPath
+
+    from ird_ros import conversions as conv
+    from ird_ros import names
+    from ird_ros.launcher import GraphLauncher
+    from ird_ros.testing import (call_service, receive_messages, ros_context, spin_until,
+                                 wait_for_publishers)
+
+    tmp = tmp_path_factory.mktemp("e2e")
+    params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
+    params["world"]["ros__parameters"].update(condition="latent_raw", seed=SEED, height=SIZE, width=SIZE,
+                                              horizon=HORIZON, obs_dim=OBS_DIM)
+    params["rob"]["ros__parameters"]["rate_hz"] = 50.0
+    params_file = tmp / "graph.yaml"
+    params_file.write_text(yaml.safe_dump(params))
+    out: dict = {"bag": tmp / "bag"}
+    with GraphLauncher(params=params_file, record_dir=out["bag"], private_domain=True, output="quiet",
+                       log_dir=tmp / "logs") as graph:
+        graph.wait_ready(timeout=120)
+        with ros_context(graph.domain_id) as ctx:
+            node = rclpy.create_node("e2e_client", context=ctx)
+            try:
+                status: list = []
+                sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
+                wait_for_publishers(node, sub, timeout=60)
+                proxy = receive_messages(node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
+                train = receive_messages(node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
+                req = InferReward.Request()
+                req.training_map = train
+                req.start_row, req.start_col, req.horizon = proxy.start_row, proxy.start_col, proxy.horizon
+                req.proxy_weights = list(proxy.weights)
+                req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 40, 11
+                res = call_service(node, node.create_client(InferReward, names.SRV_INFER), req, timeout=300)
+                assert res.success, res.message
+                out["posterior"] = conv.posterior_from_msg(res.posterior)
+                out["train"] = conv.feature_grid_from_msg(train)
+                out["proxy"] = proxy
+
+                inst = lavaland.make_instance("latent_raw", SEED, size=SIZE, horizon=HORIZON, obs_dim=OBS_DIM)
+                reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+                plan_req = PlanPath.Request()
+                plan_req.start_row, plan_req.start_col = proxy.test_start_row, proxy.test_start_col
+                plan_req.horizon = proxy.test_horizon
+                plan_req.mode, plan_req.baseline, plan_req.label = "per_step", "training_features", "ird"
+                plan_req.weights = list(res.posterior.samples)
+                plan_req.reference_features = list(reference)
+                plan = call_service(node, node.create_client(PlanPath, names.SRV_PLAN), plan_req, timeout=120)
+                assert plan.success, plan.message
+                out["plan_cells"] = list(zip(plan.rows, plan.cols))
+                stamp = plan.path.header.stamp
+                spin_until(node, lambda: any(s.done and s.plan_stamp == stamp for s in status), timeout=60,
+                           what="Rob finishing the plan")
+                out["final"] = [s for s in status if s.done and s.plan_stamp == stamp][-1]
+                out["statuses"] = [s for s in status if s.plan_stamp == stamp]
+                out["inst"], out["reference"] = inst, reference
+            finally:
+                node.destroy_node()
+    return out
+
+
+def test_world_matches_ird_core(mission: dict) -> None:
+    inst = mission["inst"]
+    assert np.array_equal(mission["train"].features, inst.train_features.astype(np.float32))
+    assert np.allclose(mission["proxy"].weights, inst.proxy_weights)
+
+
+def test_posterior_equals_sample_posterior(mission: dict) -> None:
+    proxy, train = mission["proxy"], mission["train"]
+    mdp = GridMDP(np.asarray(train.features, dtype=np.float64), (proxy.start_row, proxy.start_col), proxy.horizon)
+    direct = inference.sample_posterior(np.asarray(proxy.weights), mdp, 5.0, "maxent_z", 40, 11)
+    got = mission["posterior"]
+    assert np.array_equal(got.samples, direct.samples)
+    assert got.r_hat_max == pytest.approx(direct.r_hat_max)
+
+
+def test_rob_executes_the_plan_and_judges_it_like_ird_core(mission: dict) -> None:
+    inst = mission["inst"]
+    # The planner sees the test map as published: float32 features.
+    test_mdp = GridMDP(inst.test_features.astype(np.float32).astype(np.float64), inst.test_start,
+                       inst.test_horizon)
+    expected = planning.plan_path(test_mdp, mission["posterior"].samples, "per_step",
+                                  "training_features", mission["reference"])
+    cells = mission["plan_cells"]
+    assert tuple(cells) == tuple(expected.cells)
+    final = mission["final"]
+    assert final.step == inst.test_horizon and (final.row, final.col) == cells[-1]
+    assert final.touched_lava == lavaland.touches_lava(inst.test_labels, cells)
+    assert final.reached_target == lavaland.reaches_target(inst.test_labels, cells)
+    assert final.true_return == pytest.approx(lavaland.true_return(inst.test_labels, cells))
+    assert [(s.row, s.col) for s in mission["statuses"]] == cells
+
+
+def test_bag_holds_every_recorded_topic_and_analyze_bag_reads_it(mission: dict) -> None:
+    from ird_ros.bag_reader import summarize
+
+    counts = {t.topic: t.count for t in summarize(mission["bag"])}
+    steps = HORIZON + 1
+    expected = {"/world/train_features": 1, "/world/test_features": 1, "/world/terrain": 1,
+                "/world/proxy": 1, "/terrain/classes": 1, "/ird/posterior": 1, "/ird/risk_map": 1,
+                "/plan": 1, "/ird/plan_info": 1, "/rob/status": steps, "/odom": steps}
+    for topic, count in expected.items():
+        assert counts.get(topic) == count, (topic, counts)
+    run = subprocess.run([sys.executable, str(REPO / "scripts/analyze_bag.py"), str(mission["bag"]),
+                          "--out", str(mission["bag"].parent / "plots")],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "ird" in run.stdout and "/rob/status" in run.stdout
+    assert list((mission["bag"].parent / "plots").glob("*.png"))
