@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 __all__ = [
+    "running_nodes",
     "DOMAIN_ID_MAX",
     "DOMAIN_LOCK_DIR",
     "DomainLease",
@@ -462,3 +463,21 @@ def receive_messages(
     finally:
         node.destroy_subscription(sub)
     return received
+
+
+@contextlib.contextmanager
+def running_nodes(domain: "DomainLease", *nodes: tuple[str, Sequence[str]]) -> Iterator[list[NodeProcess]]:
+    """Start node processes ``(name, argv)`` together, wait until each logs ``"<name> ready"``,
+    stop them at the end (SIGINT) and check that each exited with 0."""
+    procs: list[NodeProcess] = []
+    try:
+        for name, args in nodes:
+            procs.append(spawn_node_process(list(args), domain=domain, name=name))
+        for proc in procs:
+            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
+        yield procs
+    finally:
+        for proc in procs:
+            proc.stop()
+    for proc in procs:
+        assert proc.returncode == 0, proc.describe()

@@ -24,14 +24,11 @@ import argparse
 import concurrent.futures
 import dataclasses
 import datetime as dt
-import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]

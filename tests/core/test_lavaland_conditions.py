@@ -300,7 +300,7 @@ def brute_expected_features(plan_features: np.ndarray, weights: np.ndarray,
     return probs @ count_phi
 
 
-@pytest.mark.parametrize(("condition", "seed"), itertools.product(L.CONDITIONS, (0, 1)))
+@pytest.mark.parametrize(("condition", "seed"), list(itertools.product(L.CONDITIONS, (0, 1))))
 def test_proxy_feature_expectations_match_enumeration(condition: str, seed: int) -> None:
     inst = L.make_instance(condition, seed, size=3, horizon=3, obs_dim=5)
     assert len(enumerate_paths(3, 3, inst.train_start, 3)) > 20

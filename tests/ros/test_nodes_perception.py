@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -15,30 +14,13 @@ from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+from ird_ros.testing import running_nodes as running
+from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
 H, W, T, OBS = 8, 9, 10, 10
 SEED = 21
-
-
-@contextlib.contextmanager
-def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
-    """Start the node processes together, wait until each logs "<name> ready", stop them at the
-    end (SIGINT) and check that each exited with 0."""
-    procs: list[NodeProcess] = []
-    try:
-        for name, args in nodes:
-            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
-        for proc in procs:
-            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
-        yield procs
-    finally:
-        for proc in procs:
-            proc.stop()
-    for proc in procs:
-        assert proc.returncode == 0, proc.describe()
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ follows the posterior, replan_on_posterior plans by itself, and bad requests are
 
 from __future__ import annotations
 
-import contextlib
 import math
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -19,6 +18,7 @@ from ird_msgs.srv import GenerateWorld, PlanPath
 from nav_msgs.msg import OccupancyGrid, Path as PathMsg
 from ird_ros import conversions as conv
 from ird_ros import names
+from ird_ros.testing import running_nodes as running
 from ird_ros.testing import (
     DomainLease,
     NodeProcess,
@@ -33,24 +33,6 @@ ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
 H, W, T, OBS = 7, 8, 9, 8
 SEED = 13
-
-
-@contextlib.contextmanager
-def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
-    """Start the node processes together, wait until each logs "<name> ready", stop them at the
-    end (SIGINT) and check that each exited with 0."""
-    procs: list[NodeProcess] = []
-    try:
-        for name, args in nodes:
-            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
-        for proc in procs:
-            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
-        yield procs
-    finally:
-        for proc in procs:
-            proc.stop()
-    for proc in procs:
-        assert proc.returncode == 0, proc.describe()
 
 
 @pytest.fixture(scope="module")

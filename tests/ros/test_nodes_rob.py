@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -15,10 +14,10 @@ from ird_msgs.msg import PlanInfo, RobStatus
 from nav_msgs.msg import Odometry, Path as PathMsg
 from ird_ros import conversions as conv
 from ird_ros import names
+from ird_ros.testing import running_nodes as running
 from ird_ros.testing import (
     DomainLease,
     NodeProcess,
-    spawn_node_process,
     spin_until,
     wait_for_publishers,
     wait_for_subscribers,
@@ -29,24 +28,6 @@ PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
 H, W, T = 8, 8, 10
 SEED = 5
 RESOLUTION, ORIGIN = 0.5, (0.0, 0.0)
-
-
-@contextlib.contextmanager
-def running(ros_domain: DomainLease, *nodes: tuple[str, list[str]]) -> Iterator[list[NodeProcess]]:
-    """Start the node processes together, wait until each logs "<name> ready", stop them at the
-    end (SIGINT) and check that each exited with 0."""
-    procs: list[NodeProcess] = []
-    try:
-        for name, args in nodes:
-            procs.append(spawn_node_process(args, domain=ros_domain, name=name))
-        for proc in procs:
-            proc.wait_for_output(f"{proc.name} ready", timeout=60.0)
-        yield procs
-    finally:
-        for proc in procs:
-            proc.stop()
-    for proc in procs:
-        assert proc.returncode == 0, proc.describe()
 
 
 @pytest.fixture(scope="module")
