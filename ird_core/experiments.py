@@ -151,13 +151,10 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str,
     if method == "sample_z":
         kwargs["proxy_sample_features"] = lavaland.proxy_prior_features(
             inst, spec.num_proxy_samples, _derived_seed(inst.seed, 100), spec.prior_sigma)
-    # The proxy weights only validate the shape here (proxy_features overrides phi~(w~)); for
-    # latent_classifier they live in the 3-d classifier space, so pass a d-vector of zeros.
-    proxy = inst.proxy_weights if inst.classifier is None else np.zeros(inst.num_features)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return inference.sample_posterior(
-            proxy, lavaland.train_mdp(inst), spec.beta, method, spec.num_samples, sampler_seed,
+            inst.proxy_weights, lavaland.train_mdp(inst), spec.beta, method, spec.num_samples, sampler_seed,
             spec.prior_sigma, num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
             max_leapfrog=spec.max_leapfrog, **kwargs)
 

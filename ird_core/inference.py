@@ -375,7 +375,9 @@ def make_posterior_model(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: fl
     if not isinstance(train_mdp, GridMDP):
         raise ValueError(f"train_mdp: expected a GridMDP, got {type(train_mdp).__name__}")
     dim = train_mdp.num_features
-    proxy = _check_array("proxy_weights", proxy_weights, (dim,))
+    # With proxy_features given, the proxy may live in another feature space (latent_classifier:
+    # p classifier outputs); its weights are then only recorded, so any length p >= 1 is valid.
+    proxy = _check_array("proxy_weights", proxy_weights, (None,) if proxy_features is not None else (dim,))
     beta = _check_real("beta", beta, positive=False)
     if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
@@ -410,7 +412,8 @@ def log_posterior(weights: np.ndarray, proxy_weights: np.ndarray, train_mdp: Gri
 
     Args:
         weights: ``(K, d)`` candidates ``w``.
-        proxy_weights: ``(d,)`` the proxy ``w~`` (finite).
+        proxy_weights: ``(d,)`` the proxy ``w~`` (finite); ``(p,)`` of any length when
+            ``proxy_features`` is given (then only recorded).
         train_mdp: the training MDP on the hypothesis features.
         beta: designer rationality, finite and ``>= 0`` (0: the prior only).
         method: ``"maxent_z"`` or ``"sample_z"``.

@@ -18,10 +18,8 @@ start and horizon), and its expected visits contracted with ``training_map``'s f
 ``phi~(w~)`` IRD conditions on (``proxy_features`` of sample_posterior). For Sample-Z the proxy
 prior samples are drawn in the proxy's space (``proxy_prior_samples(N, p, sigma, seed)``, as
 ``ird_core.lavaland.proxy_prior_features`` does), planned on ``proxy_map`` and contracted the
-same way (``proxy_sample_features``). See :func:`proxy_map_terms` and :func:`run_inference`:
-``sample_posterior`` checks its ``proxy_weights`` argument against the hypothesis dimension even
-when ``proxy_features`` replaces it, so the node passes ``d`` zeros there (unused) and stores the
-request's ``p`` proxy weights in the result.
+same way (``proxy_sample_features``). See :func:`proxy_map_terms` and :func:`run_inference`;
+the request's ``p`` proxy weights are recorded in the posterior as they are.
 
 Responsiveness: the service callback is a coroutine that awaits the worker process
 (``node_main.WorkerPool``); the executor keeps serving parameters and other requests meanwhile.
@@ -32,7 +30,6 @@ get ``success: false`` ("busy").
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from typing import Any
@@ -99,13 +96,6 @@ def run_inference(job: dict[str, Any]) -> Any:
         kwargs["proxy_features"] = phi
         if sample_phi is not None:
             kwargs["proxy_sample_features"] = sample_phi
-        # sample_posterior validates proxy_weights against the hypothesis dimension d even when
-        # proxy_features replaces them in the computation; they are only stored. Pass d zeros and
-        # store the real (p,) proxy weights in the result.
-        posterior = core_inference.sample_posterior(
-            np.zeros(train_mdp.num_features), train_mdp, job["beta"], job["method"], job["num_samples"],
-            job["seed"], job["prior_sigma"], **kwargs)
-        return dataclasses.replace(posterior, proxy_weights=np.array(job["proxy_weights"], dtype=np.float64))
     return core_inference.sample_posterior(
         job["proxy_weights"], train_mdp, job["beta"], job["method"], job["num_samples"], job["seed"],
         job["prior_sigma"], **kwargs)

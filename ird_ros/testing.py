@@ -430,7 +430,12 @@ def wait_for_node(node: Any, name: str, namespace: str = "/", *, timeout: float 
 
 
 def call_service(node: Any, client: Any, request: Any, *, timeout: float = 30.0, **kw: Any) -> Any:
-    """Call a service and spin until the response arrives; return the response."""
+    """Wait for the server, call it, and spin until the response arrives; return the response.
+
+    Waiting first matters: a request sent before discovery matched client and server is
+    dropped without an error, and the call would hang until ``timeout``.
+    """
+    wait_for_service(node, client, timeout=timeout, **kw)
     future = client.call_async(request)
     spin_until(node, future.done, timeout=timeout, what=f"response of {client.srv_name}", **kw)
     return future.result()

@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -99,15 +100,10 @@ def main() -> int:
     args = parse_args()
     # Imported here so `--help` works before the venv is complete.
     import rclpy
-    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
-    from ird_msgs.srv import InferReward, PlanPath
-    from nav_msgs.msg import OccupancyGrid
 
-    from ird_ros import conversions as conv
-    from ird_ros import names
     from ird_ros.bag_reader import analyze
     from ird_ros.launcher import GraphLauncher
-    from ird_ros.testing import call_service, receive_messages, ros_context, spin_until, wait_for_publishers
+    from ird_ros.testing import ros_context
 
     base = TrialSpec(condition=args.condition, seed=args.seed)
     beta = args.beta if args.beta is not None else base.beta
@@ -136,9 +132,7 @@ def main() -> int:
         with ros_context(graph.domain_id) as ctx:
             node = rclpy.create_node("ird_demo", context=ctx)
             try:
-                outcomes, risk = run_mission(node, args, spec, conv, names, call_service,
-                                             receive_messages, spin_until, wait_for_publishers, FeatureGrid, ProxyReward,
-                                             RobStatus, InferReward, PlanPath, OccupancyGrid)
+                outcomes, risk = run_mission(node, args, spec)
             finally:
                 node.destroy_node()
     bag_dir = run_dir / "bag"
@@ -157,9 +151,8 @@ def main() -> int:
         print(f"  {o.label:<18} {str(o.touched_lava):>12} {str(o.reached_target):>15} {o.true_return:>12.2f}")
 
     summary = analyze(bag_dir, out_dir=run_dir / "bag_plots")
-    counts = {t["topic"]: t["count"] for t in summary.get("topics", [])} if isinstance(summary, dict) else {}
-    if counts:
-        print("\nBag " + str(bag_dir) + ": " + ", ".join(f"{t} {n}" for t, n in sorted(counts.items())))
+    recorded = sorted((t["topic"], t["count"]) for t in summary["topics"])
+    print(f"\nBag {bag_dir}: " + ", ".join(f"{topic} {count}" for topic, count in recorded))
 
     if survey_future is not None:
         counts = survey_future.result()
@@ -172,9 +165,16 @@ def main() -> int:
     return 0
 
 
-def run_mission(node, args, spec, conv, names, call_service, receive_messages, spin_until,
-                wait_for_publishers, FeatureGrid, ProxyReward, RobStatus, InferReward, PlanPath, OccupancyGrid):
+def run_mission(node, args: argparse.Namespace, spec: TrialSpec) -> tuple[list[Outcome], np.ndarray]:
     """The client side of the mission: infer, plan twice, watch Rob. Returns outcomes, risk map."""
+    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
+    from ird_msgs.srv import InferReward, PlanPath
+    from nav_msgs.msg import OccupancyGrid
+
+    from ird_ros import conversions as conv
+    from ird_ros import names
+    from ird_ros.testing import call_service, receive_messages, spin_until, wait_for_publishers
+
     # Rob's status is a volatile stream: subscribe and wait for the match before any plan exists.
     status: list = []
     status_sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
@@ -200,8 +200,7 @@ def run_mission(node, args, spec, conv, names, call_service, receive_messages, s
           flush=True)
 
     risk_msgs: list = []
-    node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, risk_msgs.append,
-                             names.latched_qos() if hasattr(names, "latched_qos") else 1)
+    node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, risk_msgs.append, names.latched_qos())
     planner = node.create_client(PlanPath, names.SRV_PLAN)
     outcomes = []
     for label, mode, baseline, weights in (
