@@ -44,7 +44,7 @@ from ird_msgs.msg import RewardPosterior
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import BrokenProcessPool, WorkerPool, declare, run_node
+from ird_ros.node_main import BrokenProcessPool, WorkerPool, declare, run_node, exit_process
 
 __all__ = ["InferenceNode", "RequestError", "proxy_map_terms", "run_inference", "main"]
 
@@ -290,4 +290,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())

@@ -48,7 +48,7 @@ from ird_core.terrain import SAFE_TERRAINS, TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import declare, run_node
+from ird_ros.node_main import declare, run_node, exit_process
 
 __all__ = ["PerceptionNode", "classify_indicators", "classify_sensors", "main"]
 
@@ -173,4 +173,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())

@@ -57,7 +57,7 @@ from ird_msgs.srv import PlanPath
 from nav_msgs.msg import OccupancyGrid, Path
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import BrokenProcessPool, WorkerPool, declare, run_node
+from ird_ros.node_main import BrokenProcessPool, WorkerPool, declare, run_node, exit_process
 
 __all__ = ["PlannerNode", "RequestError", "reference_features", "run_plan", "main"]
 
@@ -413,4 +413,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())

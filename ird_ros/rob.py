@@ -27,7 +27,7 @@ from rclpy.node import Node
 from ird_msgs.msg import PlanInfo, ProxyReward, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import declare, run_node
+from ird_ros.node_main import declare, run_node, exit_process
 from ird_ros.rob_logic import RobExecutor
 
 __all__ = ["RobNode", "main"]
@@ -144,4 +144,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())

@@ -37,7 +37,7 @@ from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import declare, run_node
+from ird_ros.node_main import declare, run_node, exit_process
 
 __all__ = ["WorldNode", "main"]
 
@@ -147,4 +147,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())
