@@ -53,7 +53,7 @@ benchmark (``scripts/bench_inference.py``):
    Ledoit-Wolf weights (see ``ird_core.mcmc``). Warm-up trajectories are capped at 8 leapfrog
    steps until the final buffer, which tunes the step at the full trajectory length. Everything
    is frozen after warm-up, so the retained draws come from one fixed, valid kernel.
-   Per-method defaults: MaxEnt-Z 60 warm-up iterations, >= 60 iterations per chain after
+   Per-method defaults: MaxEnt-Z 100 warm-up iterations, >= 120 iterations per chain after
    warm-up, <= 32 leapfrog steps; Sample-Z 150, >= 100 and <= 64 (``thin=None`` picks the
    thinning that gives each chain at least that many iterations).
 4. Draws are thinned, pooled draw-major (first retained draw of every chain, then the second,
@@ -103,6 +103,7 @@ __all__ = [
     "sample_z_scores",
     "sample_z_log_likelihood",
     "sample_z_log_likelihood_grad",
+    "sample_z_log_likelihood_and_grad",
     "proxy_prior_samples",
     "PosteriorModel",
     "make_posterior_model",
@@ -120,9 +121,11 @@ DEFAULT_NUM_CHAINS: int = 16
 #: Per-method sampler defaults (see the module docstring): Sample-Z's likelihood has much
 #: stiffer creases (a near-hard max over the proxies' feature counts), so it needs a longer
 #: warm-up to learn the metric, longer chains and more leapfrog steps per trajectory.
-DEFAULT_WARMUP: dict[str, int] = {"maxent_z": 60, "sample_z": 150}
+#: MaxEnt-Z: measured on latent_raw (15x15, T = 30, d = 50, beta 1, 1000 draws), seeds 0-5,
+#: 60 / 60 gave split R-hat 1.045-1.073 and 100 / 120 gave 1.021-1.035 (about 3 s).
+DEFAULT_WARMUP: dict[str, int] = {"maxent_z": 100, "sample_z": 150}
 #: With ``thin=None`` each chain runs at least this many iterations after warm-up.
-DEFAULT_MIN_ITERATIONS: dict[str, int] = {"maxent_z": 60, "sample_z": 100}
+DEFAULT_MIN_ITERATIONS: dict[str, int] = {"maxent_z": 120, "sample_z": 100}
 DEFAULT_MAX_LEAPFROG: dict[str, int] = {"maxent_z": 32, "sample_z": 64}
 DEFAULT_KERNEL: str = "hmc"
 #: HMC integration time in preconditioned units.
@@ -148,15 +151,25 @@ ProgressFn = Callable[[int, int], None]
 # --------------------------------------------------------------------------------------------
 
 
+#: OpenBLAS runs a gemm on one thread when ``M * N * K`` is at most this (its
+#: ``SMP_THRESHOLD_MIN * GEMM_MULTITHREAD_THRESHOLD``); larger products start threads.
+_SINGLE_THREAD_GEMM: int = 65536 * 4
+
+
 def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a @ b`` for ``(K, m) x (m, n)`` without BLAS (numpy's own einsum loop).
+    """``a @ b`` for ``(K, m) x (m, n)``, as BLAS calls small enough to stay on one thread.
 
-    Multithreaded OpenBLAS oversubscribes a loaded 2-core machine: a ``(16, 50) x (50, 1000)``
-    gemm measured 16-57 ms there against 0.4 ms for this loop, and the Sample-Z terms do two
-    such products per MCMC step.
+    A multithreaded gemm oversubscribes a loaded 2-core machine: a ``(16, 50) x (50, 1000)``
+    product measured 0.29-57 ms there with threads against 0.04 ms single-threaded, and the
+    Sample-Z terms do two such products per MCMC step. Splitting the columns keeps every call
+    under OpenBLAS's threading threshold whatever ``OPENBLAS_NUM_THREADS`` says.
     """
-    return np.einsum("km,mn->kn", a, b)
-
+    k, m = a.shape
+    n = b.shape[1]
+    width = max(1, _SINGLE_THREAD_GEMM // max(1, k * m))
+    if n <= width:
+        return a @ b
+    return np.concatenate([a @ b[:, lo:lo + width] for lo in range(0, n, width)], axis=1)
 
 
 def log_prior(weights: np.ndarray, prior_sigma: float) -> np.ndarray:
@@ -228,6 +241,22 @@ def sample_z_log_likelihood_grad(weights: np.ndarray, proxy_features: np.ndarray
     return beta * (proxy_features[None, :] - expected)
 
 
+def sample_z_log_likelihood_and_grad(weights: np.ndarray, proxy_features: np.ndarray,
+                                     own_features: np.ndarray, own_ray_derivative: np.ndarray,
+                                     sample_features: np.ndarray, beta: float
+                                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``sample_z_log_likelihood`` ``(K,)`` and ``sample_z_log_likelihood_grad`` ``(K, d)``
+    from one evaluation of the scores (the sampler's hot path; same arguments)."""
+    scores = sample_z_scores(weights, own_features, sample_features, beta)
+    peak = scores.max(axis=1, keepdims=True)
+    terms = np.exp(scores - peak)
+    total = terms.sum(axis=1, keepdims=True)
+    p = terms / total
+    value = beta * (weights @ proxy_features) - (peak + np.log(total))[:, 0]
+    expected = p[:, :1] * (own_features + own_ray_derivative) + _product(p[:, 1:], sample_features)
+    return value, beta * (proxy_features[None, :] - expected)
+
+
 def proxy_prior_samples(num: int, dim: int, prior_sigma: float, seed: int) -> np.ndarray:
     """``num`` proxies from ``N(0, sigma^2 I)``: ``prior_sigma * default_rng(seed).standard_normal``.
 
@@ -281,30 +310,6 @@ def _check_array(name: str, value: object, shape: tuple[int | None, ...]) -> np.
 # The posterior as a batched log density
 # --------------------------------------------------------------------------------------------
 
-#: Working-set budget of one MDP call: the engine keeps ``(T + 1, K, H, W)`` float64 soft values;
-#: beyond ~2 MB (a 2-core EPYC's L2 per core) the time per weight jumps 3-5x (measured on 15x15,
-#: T = 30: K = 32 takes 11 ms, K = 64 takes 50-100 ms), so larger batches are split into chunks.
-_CALL_BYTES: int = 2_000_000
-
-
-def _chunk_size(mdp: GridMDP) -> int:
-    """Weights per MDP call that keep the engine's working set within ``_CALL_BYTES``."""
-    return max(1, _CALL_BYTES // (8 * (mdp.horizon + 1) * mdp.num_states))
-
-
-def _chunked(fn: Callable[[GridMDP, np.ndarray], "np.ndarray | tuple[np.ndarray, ...]"], mdp: GridMDP,
-             weights: np.ndarray):
-    """``fn(mdp, weights)`` evaluated on cache-sized chunks of the batch and concatenated."""
-    size = _chunk_size(mdp)
-    if len(weights) <= size:
-        return fn(mdp, weights)
-    parts = [fn(mdp, weights[lo:lo + size]) for lo in range(0, len(weights), size)]
-    if isinstance(parts[0], tuple):
-        return tuple(np.concatenate(p) for p in zip(*parts))
-    return np.concatenate(parts)
-
-
-
 @dataclass(frozen=True, eq=False)
 class PosteriorModel:
     """Everything a log-posterior evaluation needs, with the proxy terms computed once.
@@ -332,29 +337,27 @@ class PosteriorModel:
     def log_density(self, weights: np.ndarray) -> np.ndarray:
         """Unnormalised log posterior; ``(K, d) -> (K,)``. One batched MDP call."""
         if self.method == "maxent_z":
-            log_z = _chunked(log_partition, self.train_mdp, weights)
+            log_z = log_partition(self.train_mdp, weights)
             like = maxent_z_log_likelihood(weights, self.proxy_features, log_z, self.beta)
         else:
-            own = _chunked(feature_expectations, self.train_mdp, weights)
+            own = feature_expectations(self.train_mdp, weights)
             like = sample_z_log_likelihood(weights, self.proxy_features, own, self.sample_features, self.beta)
         return like + log_prior(weights, self.prior_sigma)
 
     def log_density_and_grad(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Value ``(K,)`` and gradient ``(K, d)`` from one batched MDP call (``2K`` weights for
-        Sample-Z, whose gradient uses a forward difference along the ray; batches beyond the
-        cache budget are split into chunks)."""
+        Sample-Z, whose gradient uses a forward difference along the ray)."""
         if self.method == "maxent_z":
-            log_z, expectations = _chunked(log_partition_and_feature_expectations, self.train_mdp, weights)
+            log_z, expectations = log_partition_and_feature_expectations(self.train_mdp, weights)
             value = maxent_z_log_likelihood(weights, self.proxy_features, log_z, self.beta)
             grad = maxent_z_log_likelihood_grad(self.proxy_features, expectations, self.beta)
         else:
             k = len(weights)
-            both = _chunked(feature_expectations, self.train_mdp,
+            both = feature_expectations(self.train_mdp,
                             np.concatenate([weights, (1.0 + _RAY_STEP) * weights]))
             own, ray = both[:k], (both[k:] - both[:k]) / _RAY_STEP
-            value = sample_z_log_likelihood(weights, self.proxy_features, own, self.sample_features, self.beta)
-            grad = sample_z_log_likelihood_grad(weights, self.proxy_features, own, ray, self.sample_features,
-                                                self.beta)
+            value, grad = sample_z_log_likelihood_and_grad(weights, self.proxy_features, own, ray,
+                                                           self.sample_features, self.beta)
         return value + log_prior(weights, self.prior_sigma), grad + log_prior_grad(weights, self.prior_sigma)
 
     def check_weights(self, weights: object) -> np.ndarray:
@@ -395,7 +398,7 @@ def make_posterior_model(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: fl
     elif method == "sample_z":
         if samples is None:
             samples = proxy_prior_samples(num_proxy_samples, dim, sigma, seed)
-        sample_phi = _chunked(feature_expectations, train_mdp, samples)
+        sample_phi = feature_expectations(train_mdp, samples)
     for array in (phi_proxy, sample_phi):
         if array is not None:
             array.setflags(write=False)

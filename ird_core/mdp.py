@@ -11,9 +11,16 @@ Conventions (IRD_SPEC.md section 1):
   included; ``phi(xi) = sum_t F[s_t]`` and ``r(xi; w) = w . phi(xi)``.
 
 Maximum-entropy agent (section 2): ``P(xi | w) ∝ exp(w . phi(xi))`` over all trajectories.
-Every quantity is computed exactly by dynamic programming over the grid, in log space,
-vectorised over a batch of ``K`` weight vectors and over cells: a step is a handful of shifted
-array views, never a Python loop over cells or weights. Cost ``O(T * K * H * W * (d + 5))``.
+Every quantity is computed exactly by dynamic programming over the grid, vectorised over a
+batch of ``K`` weight vectors and over cells, never a Python loop over cells or weights. Cost
+``O(T * K * H * W * 5 + K * H * W * d)``. Two implementations:
+
+- the fast path: scaled *linear-space* passes (``exp`` once per cell, then only adds and
+  multiplies) on one flat array holding the whole batch, so a step is 5-7 numpy calls on
+  contiguous memory (see "Fast path" below for why it is exact and when it is not used);
+- the reference: *log-space* passes (log-sum-exp over shifted grid views), exact for any
+  reward magnitudes; used for the batch elements the fast path flags (reward spreads of
+  hundreds of nats) and by ``soft_values``.
 """
 
 from __future__ import annotations
@@ -173,6 +180,15 @@ def _neighbour_logsumexp(values: np.ndarray) -> np.ndarray:
     return result
 
 
+def _soft_values_from_rewards(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
+    """Log-space backward induction on per-cell rewards ``(K, H, W)``; ``-> (T + 1, K, H, W)``."""
+    values = np.empty((mdp.horizon + 1,) + rewards.shape)
+    values[-1] = rewards
+    for t in range(mdp.horizon - 1, -1, -1):
+        values[t] = rewards + _neighbour_logsumexp(values[t + 1])
+    return values
+
+
 def soft_values(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     """Soft (log-sum-exp) values of the time-indexed grid, by backward induction.
 
@@ -185,40 +201,22 @@ def soft_values(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     Returns:
         ``(T + 1, K, H, W)``.
     """
-    rewards = cell_rewards(mdp, weights)
-    values = np.empty((mdp.horizon + 1,) + rewards.shape)
-    values[-1] = rewards
-    for t in range(mdp.horizon - 1, -1, -1):
-        values[t] = rewards + _neighbour_logsumexp(values[t + 1])
-    return values
+    return _soft_values_from_rewards(mdp, cell_rewards(mdp, weights))
 
 
-def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
-    """``log Z(w) = log sum_xi exp(w . phi(xi))`` over all trajectories from the start.
-
-    Args:
-        weights: ``(K, d)``.
-    Returns:
-        ``(K,)``.
-    """
-    rewards = cell_rewards(mdp, weights)
-    value = rewards
-    for _ in range(mdp.horizon):
-        value = rewards + _neighbour_logsumexp(value)
-    return value[:, mdp.start[0], mdp.start[1]].copy()
-
-
-def _log_visitation(mdp: GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Log occupancy ``log P(s_t = s)`` summed over time, and ``log Z``.
+def _log_visitation_exact(mdp: GridMDP, rewards: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Log occupancy ``log P(s_t = s)`` summed over time, and ``log Z``, in log space throughout.
 
     Uses forward messages ``alpha[t](s)`` (log summed exponentiated return of prefixes ending in
     ``s`` at ``t``) and backward soft values: ``P(s_t = s) = exp(alpha[t] + V[t] - r - log Z)``.
+    Exact for any reward magnitudes; the fallback of the linear-space passes below.
 
+    Args:
+        rewards: ``(K, H, W)``.
     Returns:
         ``(K, H, W)`` log expected visit counts, and ``(K,)`` log Z.
     """
-    values = soft_values(mdp, weights)
-    rewards = values[-1]
+    values = _soft_values_from_rewards(mdp, rewards)
     row, col = mdp.start
     log_z = values[0][:, row, col].copy()
     alpha = np.full_like(rewards, -np.inf)
@@ -231,6 +229,224 @@ def _log_visitation(mdp: GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.n
     return log_visits, log_z
 
 
+# --------------------------------------------------------------------------------------------
+# Fast path: scaled linear-space passes on a flat zero-padded layout
+# --------------------------------------------------------------------------------------------
+#
+# The K grids of a batch are stored row-major in one 1-D array of rows of width ``W + 1``: each
+# row holds a grid row and one zero "separator" entry, and a zero separator row precedes each
+# grid and ends the array. The 5-point neighbour sum of every cell of every grid is then 4 adds
+# of shifted *contiguous* slices (offsets +-1 and +-(W + 1)): a step off a grid lands on a
+# separator, which holds zero in the values and zero "exp-reward" (so garbage computed there
+# is wiped at the next multiply). Every separator inside the computed range has a cell among
+# its neighbours, so the neighbour sums there are positive and safe to divide by.
+#
+# With ``E = exp(r - max r)`` (so ``E <= 1``), the backward values ``v_t = E * (S v_{t+1})`` lie
+# in ``[exp(-(T + 1) range), 5^T]``: no rescaling is needed below ``_RESCALE_EVERY`` steps. The
+# forward pass propagates probabilities through the soft-optimal policy
+# ``pi(s' | s) = v_{t+1}(s') / (S v_{t+1})(s)``, which stay in ``[0, 1]``.
+#
+# Exactness: the passes are linear maps with coefficients in [0, 1], so the only errors beyond
+# ordinary rounding are absolute ones from results that fall into the subnormal range (at most
+# ``smallest_subnormal`` per operation), magnified at most 5x per step: every value carries an
+# absolute error below ``delta = 2 * smallest_subnormal * 5^(T + 1)``. A batch element is
+# recomputed with the exact log-space passes above unless ``delta`` is below
+# ``_RELATIVE_TOLERANCE`` times ``Z``'s scaled value and, summed over the forward pass, times
+# the probability-weighted inverse neighbour sums ``sum_t sum_s d_t(s) / u_t(s)`` that the
+# policy divides by. Ordinary rewards never get there; reward spreads of hundreds of nats do.
+
+#: Relative error allowed from subnormal underflow before an element is recomputed exactly.
+_RELATIVE_TOLERANCE = 1e-13
+#: Backward steps between rescalings; ``5^{256} < 1e180`` so values cannot overflow in between.
+_RESCALE_EVERY = 256
+
+
+def _log_underflow_error(horizon: int) -> float:
+    """``log delta``: a bound on the absolute error of any scaled linear-space value."""
+    periods = 1 + horizon // _RESCALE_EVERY
+    steps = min(horizon, _RESCALE_EVERY) + 1
+    return float(np.log(2.0 * periods * np.finfo(np.float64).smallest_subnormal) + steps * np.log(5.0))
+
+
+@dataclass(frozen=True, eq=False)
+class _FlatGrids:
+    """The flat layout of ``K`` copies of an ``H x W`` grid (``size = (K (H + 1) + 1) (W + 1)``).
+
+    Cell ``(r, c)`` of grid ``k`` is at ``(k (H + 1) + r + 1) (W + 1) + c``; neighbour sums are
+    computed on ``[W + 1, size - W - 1)``, everything but the first and last separator rows.
+    """
+
+    num: int
+    height: int
+    width: int
+
+    @property
+    def stride(self) -> int:
+        return self.width + 1
+
+    @property
+    def size(self) -> int:
+        return (self.num * (self.height + 1) + 1) * self.stride
+
+    def pad(self, values: np.ndarray, fill: float = 0.0) -> np.ndarray:
+        """``(K, H, W)`` -> flat ``(size,)`` with ``fill`` on the separators."""
+        out = np.full(self.size, fill)
+        self.interior(out)[...] = values
+        return out
+
+    def interior(self, flat: np.ndarray) -> np.ndarray:
+        """``(..., size)`` -> ``(..., K, H, W)`` view of the grid cells."""
+        rows = flat.reshape(flat.shape[:-1] + (-1, self.stride))[..., 1:, :]
+        grids = rows.reshape(flat.shape[:-1] + (self.num, self.height + 1, self.stride))
+        return grids[..., : self.height, : self.width]
+
+    def blocks(self, flat: np.ndarray) -> np.ndarray:
+        """``(size,)`` -> ``(K, (H + 1) (W + 1))`` view: each grid with the separators after it."""
+        return flat[self.stride :].reshape(self.num, -1)
+
+    def positions(self, row: int, col: int) -> np.ndarray:
+        """Flat indices ``(K,)`` of cell ``(row, col)`` in every grid."""
+        return (np.arange(self.num) * (self.height + 1) + row + 1) * self.stride + col
+
+
+def _neighbour_sum(layout: _FlatGrids, src: np.ndarray, dst: np.ndarray) -> None:
+    """``dst = sum_{s' in succ(s)} src[s']`` on the computed range (separators: garbage)."""
+    w = layout.stride
+    lo, hi = w, layout.size - w
+    out = dst[lo:hi]
+    np.add(src[lo:hi], src[lo - 1 : hi - 1], out=out)
+    out += src[lo + 1 : hi + 1]
+    out += src[lo - w : hi - w]
+    out += src[lo + w : hi + w]
+
+
+@dataclass(frozen=True, eq=False)
+class _LinearBackward:
+    """The fast backward pass of a chunk of the batch.
+
+    Attributes:
+        layout: the flat layout of the chunk's ``K`` grids.
+        exp_rewards: ``(size,)`` ``E = exp(r - max r)`` per grid, 0 on the separators.
+        sums: ``(T + 1, size)`` neighbour sums ``u[t] = S v[t + 1]`` (``u[T] = 1``), so that
+            ``v[t] = E * u[t] / rescale[t]``; or ``None`` when not kept.
+        rescale: backward step ``t`` -> ``(K,)`` factor ``v[t]`` was divided by.
+        log_z: ``(K,)``.
+        suspect: ``(K,)`` True where ``log Z`` may be off by more than ``_RELATIVE_TOLERANCE``.
+    """
+
+    layout: _FlatGrids
+    exp_rewards: np.ndarray
+    sums: "np.ndarray | None"
+    rescale: dict[int, np.ndarray]
+    log_z: np.ndarray
+    suspect: np.ndarray
+
+
+def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) -> _LinearBackward:
+    """Scaled linear-space soft values of ``rewards`` ``(K, H, W)`` (finite)."""
+    k = rewards.shape[0]
+    layout = _FlatGrids(k, mdp.height, mdp.width)
+    peak = rewards.max(axis=(1, 2))
+    exp_rewards = layout.pad(np.exp(rewards - peak[:, None, None]))
+    horizon = mdp.horizon
+    sums = np.ones((horizon + 1 if keep_sums else 1, layout.size))
+    v = exp_rewards.copy()
+    log_scale = np.zeros(k)
+    rescale: dict[int, np.ndarray] = {}
+    for t in range(horizon - 1, -1, -1):
+        u = sums[t] if keep_sums else sums[0]
+        _neighbour_sum(layout, v, u)
+        np.multiply(exp_rewards, u, out=v)
+        if (horizon - t) % _RESCALE_EVERY == 0:
+            grids = layout.blocks(v)
+            scale = grids.max(axis=1)
+            scale = np.where(scale > 0.0, scale, 1.0)
+            grids /= scale[:, None]
+            log_scale += np.log(scale)
+            rescale[t] = scale
+    with np.errstate(divide="ignore"):
+        log_start = np.log(v[layout.positions(*mdp.start)])
+    suspect = ~(log_start - _log_underflow_error(horizon) >= -np.log(_RELATIVE_TOLERANCE))
+    return _LinearBackward(layout, exp_rewards, sums if keep_sums else None, rescale,
+                           log_start + log_scale + (horizon + 1) * peak, suspect)
+
+
+def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray, np.ndarray]:
+    """Expected visits ``(K, H, W)`` from forward probabilities under the soft-optimal policy
+    ``pi(s' | s) = v[t + 1](s') / u[t](s)``, and a ``(K,)`` flag, True where they may be off by
+    more than ``_RELATIVE_TOLERANCE``."""
+    layout, u = back.layout, back.sums
+    d = np.zeros(layout.size)
+    d[layout.positions(*mdp.start)] = 1.0
+    visits = d.copy()
+    ratio = np.empty(layout.size)
+    ratio_sum = np.zeros(layout.size)
+    spread = np.zeros(layout.size)
+    for t in range(mdp.horizon):
+        np.divide(d, u[t], out=ratio)
+        ratio_sum += ratio
+        _neighbour_sum(layout, ratio, spread)
+        np.multiply(spread, back.exp_rewards, out=d)
+        d *= u[t + 1]
+        if t + 1 in back.rescale:
+            layout.blocks(d)[...] /= back.rescale[t + 1][:, None]
+        visits += d
+    with np.errstate(divide="ignore"):
+        log_ratio = np.log(layout.blocks(ratio_sum).sum(axis=1))
+    suspect = ~(log_ratio + _log_underflow_error(mdp.horizon) <= np.log(_RELATIVE_TOLERANCE))
+    # A NaN from a flagged element can leak into its neighbours in the layout: flag those too.
+    suspect |= ~np.isfinite(layout.blocks(visits).sum(axis=1))
+    return layout.interior(visits), suspect
+
+
+#: Working set of one fast-path chunk (the kept neighbour sums, ``(T + 1) (H + 1) (W + 1)``
+#: float64 per weight); larger batches are split, since the passes slow down severalfold once
+#: the arrays spill out of the per-core cache.
+_CHUNK_BYTES = 1_000_000
+
+
+def _chunks(mdp: GridMDP, num: int) -> list[slice]:
+    per_weight = 8 * (mdp.horizon + 1) * (mdp.height + 1) * (mdp.width + 1)
+    size = max(1, _CHUNK_BYTES // per_weight)
+    return [slice(lo, min(num, lo + size)) for lo in range(0, num, size)]
+
+
+def _visitation_and_log_partition(mdp: GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Expected visits ``(K, H, W)`` and ``log Z`` ``(K,)``: linear-space passes on cache-sized
+    chunks, with the exact log-space passes for the elements the fast path flags."""
+    rewards = cell_rewards(mdp, weights)
+    visits = np.empty(rewards.shape)
+    log_z = np.empty(len(rewards))
+    for part in _chunks(mdp, len(rewards)):
+        back = _linear_backward(mdp, rewards[part])
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            visits[part], unsure = _linear_visitation(mdp, back)
+        log_z[part] = back.log_z
+        redo = np.flatnonzero(back.suspect | unsure | ~np.isfinite(back.log_z)) + part.start
+        if len(redo):
+            log_visits, log_z[redo] = _log_visitation_exact(mdp, rewards[redo])
+            visits[redo] = np.exp(log_visits)
+    return visits, log_z
+
+
+def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
+    """``log Z(w) = log sum_xi exp(w . phi(xi))`` over all trajectories from the start.
+
+    Args:
+        weights: ``(K, d)``.
+    Returns:
+        ``(K,)``.
+    """
+    rewards = cell_rewards(mdp, weights)
+    back = _linear_backward(mdp, rewards, keep_sums=False)
+    log_z = back.log_z
+    redo = back.suspect | ~np.isfinite(log_z)
+    if redo.any():
+        row, col = mdp.start
+        log_z[redo] = _soft_values_from_rewards(mdp, rewards[redo])[0][:, row, col]
+    return log_z
+
+
 def expected_visitation(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     """Expected number of visits to each cell over ``t = 0..T`` under ``P(xi | w)``.
 
@@ -239,8 +455,7 @@ def expected_visitation(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     Returns:
         ``(K, H, W)``; each slice sums to ``T + 1``.
     """
-    log_visits, _ = _log_visitation(mdp, weights)
-    return np.exp(log_visits)
+    return _visitation_and_log_partition(mdp, weights)[0]
 
 
 def feature_expectations(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
@@ -251,17 +466,16 @@ def feature_expectations(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     Returns:
         ``(K, d)``.
     """
-    visits = expected_visitation(mdp, weights)
-    return np.einsum("khw,hwd->kd", visits, mdp.features, optimize=True)
+    return log_partition_and_feature_expectations(mdp, weights)[1]
 
 
 def log_partition_and_feature_expectations(
     mdp: GridMDP, weights: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """``log Z`` ``(K,)`` and ``E[phi]`` ``(K, d)`` from one pair of passes (for gradients)."""
-    log_visits, log_z = _log_visitation(mdp, weights)
-    expectations = np.einsum("khw,hwd->kd", np.exp(log_visits), mdp.features, optimize=True)
-    return log_z, expectations
+    visits, log_z = _visitation_and_log_partition(mdp, weights)
+    flat = mdp.features.reshape(mdp.num_states, mdp.num_features)
+    return log_z, visits.reshape(len(visits), mdp.num_states) @ flat
 
 
 __all__.append("log_partition_and_feature_expectations")

@@ -77,6 +77,23 @@ def test_maxent_gradient_formula() -> None:
     np.testing.assert_allclose(grad, want, rtol=1e-8, atol=1e-10)
 
 
+@pytest.mark.parametrize("beta", [0.0, 1.0, 40.0])
+def test_fused_sample_z_value_and_gradient_equal_the_separate_operators(beta: float) -> None:
+    # The sampler's hot path evaluates the scores once; it must agree with the two definitions,
+    # including when the softmax is nearly one-hot (beta = 40) and the proxies span many BLAS
+    # column blocks (N = 3000).
+    rng = np.random.default_rng(3)
+    weights, own, ray = rng.normal(size=(16, 50)), rng.normal(size=(16, 50)), rng.normal(size=(16, 50))
+    proxy, samples = rng.normal(size=50), 3.0 * rng.normal(size=(3000, 50))
+    value, grad = I.sample_z_log_likelihood_and_grad(weights, proxy, own, ray, samples, beta)
+    np.testing.assert_allclose(value, I.sample_z_log_likelihood(weights, proxy, own, samples, beta),
+                               rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(grad, I.sample_z_log_likelihood_grad(weights, proxy, own, ray, samples, beta),
+                               rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(I.sample_z_scores(weights, own, samples, beta)[:, 1:], beta * weights @ samples.T,
+                               rtol=1e-12, atol=1e-9)
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), beta=st.floats(0.0, 20.0), scale=st.sampled_from([0.1, 1.0, 5.0]),
        shift=st.floats(-10.0, 10.0), method=st.sampled_from(I.METHODS))

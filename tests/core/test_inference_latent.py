@@ -1,8 +1,8 @@
 """IRD on the latent_raw condition (d = 50): convergence and the lava-uncertainty effect.
 
-Slow (about 30-50 s on a loaded 2-core machine) but part of the default suite. It runs each
-chain twice as long as the defaults (thin=2: 126 HMC iterations per chain) so that the
-rank-normalised split R-hat is reliably below 1.05 (the defaults give about 1.05).
+Slow (about 3 s per seed) but part of the default suite. It uses the sampler's defaults, which
+must bring the rank-normalised split R-hat below 1.05 (seed 1 reached 1.071 with the earlier,
+shorter defaults).
 """
 
 from __future__ import annotations
@@ -23,10 +23,11 @@ CELL_SPREAD_FACTOR = 1.8
 
 
 @pytest.mark.slow
-def test_latent_raw_maxent_converges_and_lava_is_uncertain() -> None:
-    instance = lavaland.make_instance("latent_raw", 0)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_latent_raw_maxent_converges_and_lava_is_uncertain(seed: int) -> None:
+    instance = lavaland.make_instance("latent_raw", seed)
     post = inference.sample_posterior(instance.proxy_weights, lavaland.train_mdp(instance), 1.0, "maxent_z",
-                                      1000, seed=0, thin=2)
+                                      1000, seed=seed)
     assert post.samples.shape == (1000, 50)
     assert post.r_hat_max <= 1.05, post.r_hat_max
     assert post.converged and post.ess_min >= 100

@@ -88,6 +88,42 @@ def test_batch_equals_one_at_a_time() -> None:
     assert np.allclose(batched, single, rtol=1e-12, atol=1e-12)
 
 
+def exact_reference(mdp: M.GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """log Z and visits from the log-space passes alone (the fast path's fallback)."""
+    log_visits, log_z = M._log_visitation_exact(mdp, M.cell_rewards(mdp, weights))
+    return log_z, np.exp(log_visits)
+
+
+@pytest.mark.parametrize("height, width, horizon", [(15, 15, 30), (6, 11, 40), (1, 9, 12), (5, 5, 600)])
+def test_linear_space_passes_match_log_space_on_large_grids(height: int, width: int, horizon: int) -> None:
+    # Grids too large to enumerate: the fast path against the exact log-space passes. The
+    # T = 600 case would overflow (5^600) without the rescalings of the backward values.
+    rng = np.random.default_rng(height * 100 + horizon)
+    mdp = random_mdp(rng, height, width, d=5, horizon=horizon)
+    weights = rng.normal(size=(9, 5)) * np.array([0.0, 0.1, 0.3, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0])[:, None]
+    suspect = M._linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
+    assert not suspect.any(), "ordinary rewards must not need the exact fallback"
+    log_z, visits = exact_reference(mdp, weights)
+    assert rel_close(M.log_partition(mdp, weights), log_z, 1e-12)
+    assert np.allclose(M.expected_visitation(mdp, weights), visits, rtol=1e-10, atol=1e-12)
+
+
+def test_mixed_batch_falls_back_per_element_and_matches_one_at_a_time() -> None:
+    # Huge weights (reward spreads of thousands of nats) sit next to ordinary ones in the flat
+    # layout: the flagged elements are recomputed exactly and nothing leaks into the others.
+    rng = np.random.default_rng(7)
+    mdp = random_mdp(rng, 7, 6, d=3, horizon=15)
+    weights = rng.normal(size=(8, 3)) * np.array([1.0, 500.0, 1.0, 1.0, 2000.0, 0.0, 1.0, 300.0])[:, None]
+    suspect = M._linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
+    assert suspect[[1, 4]].all() and not suspect[[0, 2, 3, 5, 6]].any()
+    log_z, visits = exact_reference(mdp, weights)
+    batched_z, batched_phi = M.log_partition_and_feature_expectations(mdp, weights)
+    assert rel_close(batched_z, log_z, 1e-12)
+    assert np.allclose(M.expected_visitation(mdp, weights), visits, rtol=1e-10, atol=1e-12)
+    single = np.concatenate([M.feature_expectations(mdp, w[None]) for w in weights])
+    assert np.allclose(batched_phi, single, rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("seed", range(10))
 def test_optimal_path_matches_enumeration(seed: int) -> None:
     rng = np.random.default_rng(100 + seed)
