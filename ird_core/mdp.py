@@ -440,9 +440,11 @@ def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
         ``(K,)``.
     """
     rewards = cell_rewards(mdp, weights)
-    back = _linear_backward(mdp, rewards, keep_sums=False)
-    log_z = back.log_z
-    redo = back.suspect | ~np.isfinite(log_z)
+    log_z = np.empty(len(rewards))
+    redo = np.zeros(len(rewards), dtype=bool)
+    for part in _chunks(mdp, len(rewards)):
+        back = _linear_backward(mdp, rewards[part], keep_sums=False)
+        log_z[part], redo[part] = back.log_z, back.suspect | ~np.isfinite(back.log_z)
     if redo.any():
         row, col = mdp.start
         log_z[redo] = _soft_values_from_rewards(mdp, rewards[redo])[0][:, row, col]
