@@ -158,7 +158,6 @@ class PlannerNode(Node):
             return
         self._versions[topic] = self._versions.get(topic, 0) + 1
         self._stamps[topic] = _stamp(msg.header.stamp)
-        self.get_logger().info(f"DEBUG map {topic} v{self._versions[topic]}")  # DEBUG-TMP
         self._update_risk_map()
 
     def _on_proxy(self, msg: ProxyReward) -> None:
@@ -172,7 +171,6 @@ class PlannerNode(Node):
             return
         self._versions[names.TOPIC_POSTERIOR] = self._versions.get(names.TOPIC_POSTERIOR, 0) + 1
         self._stamps[names.TOPIC_POSTERIOR] = _stamp(msg.header.stamp)
-        self.get_logger().info("DEBUG posterior")  # DEBUG-TMP
         self._update_risk_map()
         if self.replan_on_posterior:
             self.executor.create_task(self._replan())
@@ -192,11 +190,14 @@ class PlannerNode(Node):
         if found is None:
             return
         topic, grid = found
-        key = (self._versions.get(names.TOPIC_POSTERIOR), topic, self._versions.get(topic))
+        # Keyed on the map's world generation (header stamp), not on the topic it came by:
+        # /terrain/features carries /world/test_features' stamp and, when its layers match, the
+        # same values, so whichever of the two arrives second (DDS delivery order varies under
+        # load) is the same map and must not publish a second, identical risk map.
+        key = (self._versions.get(names.TOPIC_POSTERIOR), self._stamps[topic])
         if key == self._risk_key:
             return
         self._risk_key = key
-        self.get_logger().info(f"DEBUG risk publish {key}")  # DEBUG-TMP
         try:
             costs = planning.risk_map(grid.features.astype(np.float64), self.posterior.samples, self.risk_statistic)
         except ValueError as exc:

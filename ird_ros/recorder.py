@@ -329,6 +329,13 @@ class RecorderNode(Node):
 
 def _drain(executor: SingleThreadedExecutor, node: RecorderNode, max_seconds: float = 2.0) -> None:
     """Take what already arrived before closing: spin until a pass brings nothing new."""
+    # Timers first: rclpy runs a due timer before pending messages, so after a busy spell (a
+    # starved process: SIGINT lands with status/discovery timers due) the first pass ran a
+    # timer, recorded nothing and ended the drain with messages still queued (the last
+    # /rob/status and /odom of a run went missing from the bag).
+    for timer in (node._status_timer, node._discovery_timer, node._flush_timer):
+        if timer is not None:
+            node.destroy_timer(timer)
     deadline = time.monotonic() + max_seconds
     while time.monotonic() < deadline:
         before = sum(node.counts.values())

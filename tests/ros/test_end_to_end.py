@@ -28,6 +28,7 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     import rclpy
     from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
     from ird_msgs.srv import InferReward, PlanPath
+    from nav_msgs.msg import OccupancyGrid
 
     from ird_ros import conversions as conv
     from ird_ros import names
@@ -64,6 +65,13 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
                 out["posterior"] = conv.posterior_from_msg(res.posterior)
                 out["train"] = conv.feature_grid_from_msg(train)
                 out["proxy"] = proxy
+                # "planner ready" does not mean the planner has matched the world, perception and
+                # inference yet: under load DDS discovery between two nodes can lag seconds, and
+                # the latched maps and posterior reach the planner only then. Its risk map (out
+                # once it holds the posterior and a test map) is the event that says it has its
+                # inputs; without this wait the plan could fail for want of a map, or the graph
+                # be stopped before the risk map was published (an empty /ird/risk_map in the bag).
+                receive_messages(node, OccupancyGrid, names.TOPIC_RISK_MAP, timeout=60)
 
                 inst = lavaland.make_instance("latent_raw", SEED, size=SIZE, horizon=HORIZON, obs_dim=OBS_DIM)
                 reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)

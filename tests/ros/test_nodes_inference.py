@@ -359,7 +359,9 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     from rcl_interfaces.srv import DescribeParameters
 
     big = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
-    long_req = make_request(big, method="maxent_z", num_samples=120, seed=1)
+    # About 3 s with the node's short sampler settings (500 HMC iterations per chain); 120 samples
+    # took seconds before the linear-space engine and finished under the probes after it.
+    long_req = make_request(big, method="maxent_z", num_samples=2000, seed=1)
     node = client.node
     describe = node.create_client(DescribeParameters, "/inference/describe_parameters")
     wait_for_service(node, describe, processes=[client.proc])
@@ -393,6 +395,6 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     spin_until(node, long_future.done, timeout=180.0, what="the long inference", processes=[client.proc])
     result = long_future.result()
     assert result.success, result.message
-    assert result.posterior.num_samples == 120
+    assert result.posterior.num_samples == 2000
     print(f"long inference took {time.monotonic() - started:.1f} s")
     node.destroy_client(describe)
