@@ -24,9 +24,18 @@ One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
 
 Seeding: trial ``i`` of a run with seed ``S`` uses instance seed ``S + i`` for every condition
 (conditions are paired by seed, see ``lavaland``), the Sample-Z proxy prior features and the
-posterior sampler get seeds derived with ``numpy.random.SeedSequence([instance_seed, k])``.
+posterior sampler get seeds derived with ``numpy.random.SeedSequence([trial_seed, k])`` (for
+Lavaland the trial seed is the instance seed).
 A trial is a pure function of its :class:`TrialSpec`, so results do not depend on the number
 of workers or the order in which trials finish.
+
+World files (``TrialSpec.world``, ``scripts/run_experiments.py --world FILE``): the trial runs
+on the file's instance (:func:`ird_core.world_file.load_world`; its size, horizons and
+observations are the file's) and the posterior is the joint one over every training world of
+the file (``lavaland.proxy_observations``, IRD_SPEC 7). The world is fixed, so the trials of a
+file differ only in the trial seed ``S + i``, which seeds the sampler and the Sample-Z proxies:
+they measure how the outcome varies with the posterior's randomness, not with the map. The true
+return uses the file's true rewards (NaN when the file gives none).
 
 Aggregation (:func:`aggregate`): fractions with 95% Wilson score intervals, mean true return
 with a 95% Student-t interval.
@@ -44,7 +53,7 @@ from typing import Iterable, Sequence
 import numpy as np
 from scipy import stats
 
-from ird_core import inference, lavaland, planning
+from ird_core import inference, lavaland, planning, world_file
 
 __all__ = [
     "Z_METHODS",
@@ -56,6 +65,7 @@ __all__ = [
     "TrialResult",
     "CellSummary",
     "trial_seed",
+    "trial_instance",
     "make_specs",
     "run_trial",
     "wilson_interval",
@@ -97,6 +107,7 @@ class TrialSpec:
     traj_time_limit: float = 2.0
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
+    world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
 
 
 @dataclass(frozen=True)
@@ -139,41 +150,46 @@ def _derived_seed(seed: int, *keys: int) -> int:
 
 def _outcome(inst: lavaland.LavalandInstance, cells) -> tuple[bool, bool, float]:
     labels = inst.test_labels
+    rewards = inst.true_terrain_reward
     return lavaland.touches_lava(labels, cells), lavaland.reaches_target(labels, cells), \
-        lavaland.true_return(labels, cells)
+        (math.nan if rewards is None else lavaland.true_return(labels, cells, rewards))
 
 
-def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str,
-               proxy_features: np.ndarray) -> inference.Posterior:
+def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) -> inference.Posterior:
+    """The joint posterior over the instance's training worlds (one for Lavaland)."""
     method_index = Z_METHODS.index(method) + 1
-    sampler_seed = _derived_seed(inst.seed, method_index) % (2**31)
-    kwargs: dict = {"proxy_features": proxy_features}
-    if method == "sample_z":
-        kwargs["proxy_sample_features"] = lavaland.proxy_prior_features(
-            inst, spec.num_proxy_samples, _derived_seed(inst.seed, 100), spec.prior_sigma)
+    sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
+    observations = lavaland.proxy_observations(
+        inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
+        spec.prior_sigma)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
-        return inference.sample_posterior(
-            inst.proxy_weights, lavaland.train_mdp(inst), spec.beta, method, spec.num_samples, sampler_seed,
-            spec.prior_sigma, num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
-            max_leapfrog=spec.max_leapfrog, **kwargs)
+        return inference.sample_joint_posterior(
+            observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
+            num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
+
+
+def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
+    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``."""
+    if spec.world:
+        return world_file.load_world(spec.world)
+    return lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
+                                  obs_dim=spec.obs_dim)
 
 
 def run_trial(spec: TrialSpec) -> list[TrialResult]:
     """Run one trial: literal plan, and per Z-approximation one posterior and its IRD plans."""
-    inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
-                                  obs_dim=spec.obs_dim)
+    inst = trial_instance(spec)
     results: list[TrialResult] = []
     literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
     results.append(TrialResult("main", spec.condition, spec.seed, "literal", "", "literal", "none",
                                *_outcome(inst, literal.cells), literal.objective, literal.solver, False,
                                0.0, math.nan, math.nan, literal.cells))
-    proxy_features = lavaland.proxy_feature_expectations(inst)
-    reference = proxy_features / (inst.train_horizon + 1)
+    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     test = lavaland.test_mdp(inst)
     for method in spec.z_methods:
         t0 = time.perf_counter()
-        post = _posterior(spec, inst, method, proxy_features)
+        post = _posterior(spec, inst, method)
         seconds = time.perf_counter() - t0
         diag = (seconds, post.r_hat_max, post.acceptance_rate)
         plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}

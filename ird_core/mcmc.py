@@ -1,21 +1,12 @@
 """Batched Markov chain Monte Carlo: many chains advanced together as one batch.
 
-A target is a function ``log_density(x (C, d)) -> (log p (C,), grad (C, d) | None)`` evaluated on
-every chain at once, so each MCMC step costs ONE batched call (``L`` calls for HMC with ``L``
-leapfrog steps). The gradient may be any deterministic vector field: MALA and HMC stay exact
-(the Metropolis-Hastings correction uses the same field at both ends), only their efficiency
-depends on how well it matches ``grad log p``.
+The kernels (RWM, MALA, HMC) are ``init``/``step`` pairs in ``ird_core.mcmc_kernels``, chosen by
+name from ``KERNEL_TABLE``; this module adapts their parameters in a warm-up and runs them.
+Every step makes ONE batched ``log_density`` call on all ``C`` chains (``L`` calls for HMC with
+``L`` leapfrog steps); positions are ``(C, d)`` arrays throughout.
 
-Kernels (one operator each):
-
-- ``rwm``: random-walk Metropolis, ``x' = x + h L z``.
-- ``mala``: Metropolis-adjusted Langevin, ``x' = x + h^2/2 M g(x) + h L z``.
-- ``hmc``: Hamiltonian Monte Carlo with ``L`` leapfrog steps in whitened coordinates.
-
-Here ``z ~ N(0, I)``, ``M = L L^T`` is a preconditioner (an estimate of the posterior
-covariance) and ``h`` a step size shared by all chains.
-
-Warm-up (Stan-style windowed adaptation, Hoffman & Gelman 2014 dual averaging):
+Warm-up (Stan-style windowed adaptation, Hoffman & Gelman 2014 dual averaging), laid out by
+``warmup_schedule`` and applied by ``warmup_update``:
 
 1. an initial buffer (``max(15%, 5)`` iterations) adapts only the step size;
 2. doubling windows: at the end of each window the preconditioner is re-estimated from that
@@ -30,39 +21,57 @@ Dual averaging drives the chain-averaged Metropolis acceptance probability towar
 target (0.234 RWM, 0.574 MALA, 0.8 HMC). Everything is frozen after warm-up, so the retained
 draws come from a fixed, valid Markov kernel.
 
-Diagnostics: split R-hat (Gelman et al., BDA3, 11.4), its rank-normalised and folded variant
-(Vehtari et al. 2021) and the multi-chain effective sample size with Geyer's initial monotone
-sequence estimator (as in Stan). ``sample_chains`` reports them over every post-warm-up
-iteration, whatever the thinning.
+Diagnostics (``ird_core.diagnostics``, re-exported here): ``sample_chains`` reports the
+rank-normalised split R-hat and the bulk ESS over every post-warm-up iteration, whatever the
+thinning.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
-from scipy.special import ndtri
-from scipy.stats import rankdata
+from scipy.linalg import cholesky
+
+from ird_core.diagnostics import (bulk_effective_sample_size, effective_sample_size, rank_normalize,
+                                  rank_normalized_r_hat, split_chains, split_r_hat)
+from ird_core.mcmc_kernels import (DIVERGENCE_THRESHOLD, KERNEL_TABLE, KERNELS, PRECONDITIONERS,
+                                   TARGET_ACCEPT, ChainState, Kernel, KernelParams, LogDensityFn,
+                                   Preconditioner, StepInfo, get_kernel, leapfrog, mala_log_proposal,
+                                   mala_mean, metropolis_accept, num_leapfrog_steps, rwm_proposal,
+                                   step_sizes)
 
 __all__ = [
     "KERNELS",
+    "KERNEL_TABLE",
     "PRECONDITIONERS",
     "TARGET_ACCEPT",
+    "DIVERGENCE_THRESHOLD",
     "LogDensityFn",
     "ProgressFn",
     "Preconditioner",
+    "ChainState",
+    "StepInfo",
+    "KernelParams",
+    "Kernel",
     "DualAveraging",
+    "WarmupStep",
+    "WarmupState",
     "MCMCResult",
+    "ChainContinuation",
     "estimate_preconditioner",
     "rwm_proposal",
     "mala_mean",
     "mala_log_proposal",
     "leapfrog",
     "metropolis_accept",
+    "find_initial_step",
     "warmup_windows",
+    "warmup_schedule",
+    "warmup_update",
     "sample_chains",
+    "continue_chains",
     "split_chains",
     "rank_normalize",
     "split_r_hat",
@@ -71,59 +80,13 @@ __all__ = [
     "bulk_effective_sample_size",
 ]
 
-#: ``x (C, d) -> (log p (C,), grad (C, d) or None)``.
-LogDensityFn = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray | None]"]
 #: ``progress(step, total)``, called once per MCMC iteration (warm-up included).
 ProgressFn = Callable[[int, int], None]
 
-KERNELS: tuple[str, ...] = ("rwm", "mala", "hmc")
-PRECONDITIONERS: tuple[str, ...] = ("identity", "diag", "dense")
-#: Target mean acceptance probabilities: RWM and MALA from the optimal-scaling results of
-#: Roberts, Gelman & Gilks (1997) and Roberts & Rosenthal (1998); HMC as Stan's default.
-TARGET_ACCEPT: dict[str, float] = {"rwm": 0.234, "mala": 0.574, "hmc": 0.8}
-
 
 # --------------------------------------------------------------------------------------------
-# Preconditioner
+# Preconditioner estimation
 # --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Preconditioner:
-    """A linear change of variables ``x = L u`` with ``M = L L^T`` (posterior covariance estimate).
-
-    Attributes:
-        chol: ``(d, d)`` lower-triangular ``L`` (diagonal for ``diag``/``identity``).
-        kind: one of ``PRECONDITIONERS``.
-    """
-
-    chol: np.ndarray
-    kind: str = "dense"
-
-    @classmethod
-    def identity(cls, dim: int, scale: float = 1.0) -> "Preconditioner":
-        return cls(scale * np.eye(dim), "identity")
-
-    @property
-    def cov(self) -> np.ndarray:
-        """``M = L L^T``; ``(d, d)``."""
-        return self.chol @ self.chol.T
-
-    def scale(self, z: np.ndarray) -> np.ndarray:
-        """``L z`` for a batch: ``(C, d) -> (C, d)``."""
-        return z @ self.chol.T
-
-    def whiten(self, v: np.ndarray) -> np.ndarray:
-        """``L^{-1} v`` for a batch: ``(C, d) -> (C, d)``."""
-        return solve_triangular(self.chol, v.T, lower=True).T
-
-    def scale_gradient(self, g: np.ndarray) -> np.ndarray:
-        """``L^T g``, the gradient in whitened coordinates: ``(C, d) -> (C, d)``."""
-        return g @ self.chol
-
-    def times_cov(self, g: np.ndarray) -> np.ndarray:
-        """``M g`` for a batch: ``(C, d) -> (C, d)``."""
-        return (g @ self.chol) @ self.chol.T
 
 
 def estimate_preconditioner(draws: np.ndarray, kind: str,
@@ -183,77 +146,6 @@ def estimate_preconditioner(draws: np.ndarray, kind: str,
     shrunk = scale[:, None] * target * scale[None, :]
     return Preconditioner(ref.chol @ cholesky(shrunk, lower=True), "dense")
 
-
-# --------------------------------------------------------------------------------------------
-# Kernels: one operator each
-# --------------------------------------------------------------------------------------------
-
-
-def rwm_proposal(x: np.ndarray, z: np.ndarray, step: np.ndarray, precond: Preconditioner) -> np.ndarray:
-    """Random-walk proposal ``x + h L z``.
-
-    Args:
-        x: ``(C, d)`` positions; z: ``(C, d)`` standard normals; step: ``(C,)`` or scalar ``h``.
-    Returns:
-        ``(C, d)``.
-    """
-    return x + np.reshape(step, (-1, 1)) * precond.scale(z)
-
-
-def mala_mean(x: np.ndarray, grad: np.ndarray, step: np.ndarray, precond: Preconditioner) -> np.ndarray:
-    """Langevin proposal mean ``x + h^2 / 2 M g(x)``; ``(C, d)`` -> ``(C, d)``."""
-    h = np.reshape(step, (-1, 1))
-    return x + 0.5 * h**2 * precond.times_cov(grad)
-
-
-def mala_log_proposal(x_to: np.ndarray, mean_from: np.ndarray, step: np.ndarray,
-                      precond: Preconditioner) -> np.ndarray:
-    """``log q(x_to | x_from)`` up to a constant shared by both directions; ``(C,)``.
-
-    ``q = N(mean_from, h^2 M)``, so this is ``-|L^{-1}(x_to - mean_from)|^2 / (2 h^2)``.
-    """
-    u = precond.whiten(x_to - mean_from)
-    return -0.5 * np.sum(u**2, axis=1) / np.reshape(step, (-1,)) ** 2
-
-
-def leapfrog(x: np.ndarray, p: np.ndarray, grad: np.ndarray, step: np.ndarray, num_steps: int,
-             log_density: LogDensityFn, precond: Preconditioner
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``num_steps`` leapfrog steps of HMC with whitened momentum ``p`` (kinetic ``|p|^2 / 2``).
-
-    In whitened coordinates ``u = L^{-1} x`` the force is ``L^T g``, so a step is
-    ``p += h/2 L^T g; x += h L p; p += h/2 L^T g``. Volume preserving and reversible for any
-    deterministic field ``g``.
-
-    Args:
-        x, p, grad: ``(C, d)``; step: ``(C,)``; log_density: the batched target.
-    Returns:
-        The end position ``(C, d)``, momentum ``(C, d)``, log density ``(C,)`` and field ``(C, d)``.
-    """
-    h = np.reshape(step, (-1, 1))
-    log_p = None
-    p = p + 0.5 * h * precond.scale_gradient(grad)
-    for i in range(num_steps):
-        x = x + h * precond.scale(p)
-        log_p, grad = log_density(x)
-        if grad is None:
-            raise ValueError("log_density: hmc needs a gradient, got None")
-        p = p + (0.5 if i == num_steps - 1 else 1.0) * h * precond.scale_gradient(grad)
-    return x, p, log_p, grad
-
-
-def metropolis_accept(log_ratio: np.ndarray, uniform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Metropolis-Hastings decisions for a batch of chains.
-
-    Args:
-        log_ratio: ``(C,)`` log acceptance ratios (NaN is treated as a rejection).
-        uniform: ``(C,)`` uniforms on ``[0, 1)``.
-    Returns:
-        ``accept (C,)`` booleans and the acceptance probabilities ``min(1, ratio)`` ``(C,)``.
-    """
-    safe = np.where(np.isnan(log_ratio), -np.inf, log_ratio)
-    prob = np.exp(np.minimum(safe, 0.0))
-    return np.log(uniform) < safe, prob
 
 
 # --------------------------------------------------------------------------------------------
@@ -330,6 +222,81 @@ def warmup_windows(warmup: int) -> list[tuple[int, int]]:
     return windows
 
 
+class WarmupStep(NamedTuple):
+    """What one warm-up iteration does besides updating the step size.
+
+    Attributes:
+        collect: the iteration's draws join the current preconditioner window.
+        window_end: re-estimate the preconditioner after this iteration.
+        short: HMC trajectories are capped at ``warmup_max_leapfrog`` (before the final buffer).
+    """
+
+    collect: bool
+    window_end: bool
+    short: bool
+
+
+def warmup_schedule(warmup: int, adapt_preconditioner: bool = True) -> list[WarmupStep]:
+    """The warm-up, one ``WarmupStep`` per iteration, from ``warmup_windows`` (no windows if
+    ``adapt_preconditioner`` is False: the step size alone adapts, with short trajectories)."""
+    windows = warmup_windows(warmup) if adapt_preconditioner else []
+    collect = np.zeros(warmup, dtype=bool)
+    window_end = np.zeros(warmup, dtype=bool)
+    for start, end in windows:
+        collect[start:end] = True
+        window_end[end - 1] = True
+    # Short trajectories only until the final buffer: the step size is then tuned with the
+    # trajectory length the retained draws use.
+    last = windows[-1][1] if windows else warmup
+    return [WarmupStep(bool(c), bool(e), it < last) for it, (c, e) in enumerate(zip(collect, window_end))]
+
+
+class WarmupState(NamedTuple):
+    """The adapted parameters during warm-up.
+
+    Attributes:
+        step_size: the dual averaging of ``log h``.
+        preconditioner: the current preconditioner.
+        window_draws: ``(C, d)`` positions collected in the current window.
+    """
+
+    step_size: DualAveraging
+    preconditioner: Preconditioner
+    window_draws: tuple[np.ndarray, ...] = ()
+
+
+def warmup_update(warm: WarmupState, stage: WarmupStep, state: ChainState, info: StepInfo,
+                  preconditioner: str) -> WarmupState:
+    """Adapt after one warm-up iteration: step size from the chain-averaged acceptance; at a
+    window's end, the ``preconditioner`` kind from the window's pooled draws."""
+    adapt = warm.step_size.update(float(info.acceptance_probability.mean()))
+    draws = warm.window_draws + (state.position,) if stage.collect else warm.window_draws
+    if not stage.window_end:
+        return WarmupState(adapt, warm.preconditioner, draws)
+    precond = estimate_preconditioner(np.stack(draws, axis=1), preconditioner, warm.preconditioner)
+    # Restart the adaptation near the current step size: the new metric changes it.
+    return WarmupState(DualAveraging.start(adapt.final_step, adapt.target, bias=1.0), precond)
+
+
+def find_initial_step(kernel: Kernel, state: ChainState, precond: Preconditioner,
+                      log_density: LogDensityFn, rng: np.random.Generator) -> tuple[float, int]:
+    """Halve the kernel's default step until the mean acceptance probability exceeds half its target.
+
+    Trial transitions are discarded (HMC trials use one leapfrog step). Returns the step and the
+    number of batched evaluations spent.
+    """
+    num_chains, dim = state.position.shape
+    step = kernel.default_step(dim)
+    evaluations = 0
+    for _ in range(40):
+        _, info = kernel.step(rng, state, log_density, KernelParams(np.full(num_chains, step), precond))  # no jitter
+        evaluations += info.num_evaluations
+        if info.acceptance_probability.mean() >= 0.5 * kernel.target_accept:
+            break
+        step *= 0.5
+    return step, evaluations
+
+
 # --------------------------------------------------------------------------------------------
 # The sampler
 # --------------------------------------------------------------------------------------------
@@ -350,6 +317,7 @@ class MCMCResult:
         r_hat: ``(d,)`` rank-normalised split R-hat over EVERY post-warm-up iteration (thinning
             only decides what is stored); NaN with fewer than 4 iterations.
         ess: ``(d,)`` bulk ESS over every post-warm-up iteration; NaN with fewer than 8.
+        num_divergent: ``(C,)`` divergent transitions after warm-up (see ``StepInfo``).
     """
 
     draws: np.ndarray
@@ -364,6 +332,31 @@ class MCMCResult:
     num_evaluations: int
     r_hat: np.ndarray
     ess: np.ndarray
+    num_divergent: "np.ndarray | None" = None
+    continuation: "ChainContinuation | None" = None
+
+
+@dataclass(frozen=True)
+class ChainContinuation:
+    """Everything ``continue_chains`` needs to extend the chains with the frozen kernel exactly as
+    if the run had been longer: the last state, the generator's state and the kernel settings.
+
+    Attributes:
+        kernel: one of ``KERNELS``.
+        state: the chains' last ``ChainState`` (positions ``(C, d)``).
+        rng_state: ``bit_generator.state`` of the run's PCG64 generator after its last draw (a
+            snapshot: continuing twice from one continuation gives the same draws).
+        step_size: the frozen step size; preconditioner: the frozen metric.
+        trajectory_length, max_leapfrog: the HMC trajectory settings.
+    """
+
+    kernel: str
+    state: ChainState
+    rng_state: dict
+    step_size: float
+    preconditioner: Preconditioner
+    trajectory_length: float
+    max_leapfrog: int
 
 
 def _check_int(name: str, value: int, minimum: int) -> int:
@@ -372,75 +365,13 @@ def _check_int(name: str, value: int, minimum: int) -> int:
     return int(value)
 
 
-@dataclass
-class _Chains:
-    """Mutable per-iteration state of the batch (private to ``sample_chains``)."""
-
-    x: np.ndarray
-    log_p: np.ndarray
-    grad: "np.ndarray | None"
-
-
-def _evaluate(log_density: LogDensityFn, x: np.ndarray, need_grad: bool
-              ) -> "tuple[np.ndarray, np.ndarray | None]":
-    log_p, grad = log_density(x)
-    log_p = np.asarray(log_p, dtype=np.float64).reshape(x.shape[0])
-    if need_grad:
-        if grad is None:
-            raise ValueError("log_density: this kernel needs a gradient, got None")
-        grad = np.asarray(grad, dtype=np.float64).reshape(x.shape)
-    return log_p, grad
-
-
-def _transition(kernel: str, chains: _Chains, step: np.ndarray, num_leapfrog: int,
-                precond: Preconditioner, log_density: LogDensityFn, rng: np.random.Generator
-                ) -> tuple[_Chains, np.ndarray, np.ndarray]:
-    """One MH transition of every chain. Returns the new state, accept mask and probabilities."""
-    z = rng.standard_normal(chains.x.shape)
-    if kernel == "rwm":
-        proposal = rwm_proposal(chains.x, z, step, precond)
-        log_p, grad = _evaluate(log_density, proposal, need_grad=False)
-        log_ratio = log_p - chains.log_p
-    elif kernel == "mala":
-        proposal = mala_mean(chains.x, chains.grad, step, precond) + np.reshape(step, (-1, 1)) * precond.scale(z)
-        log_p, grad = _evaluate(log_density, proposal, need_grad=True)
-        forward = -0.5 * np.sum(z**2, axis=1)
-        backward = mala_log_proposal(chains.x, mala_mean(proposal, grad, step, precond), step, precond)
-        log_ratio = log_p - chains.log_p + backward - forward
-    else:
-        def wrapped(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return _evaluate(log_density, x, need_grad=True)  # type: ignore[return-value]
-        proposal, p_end, log_p, grad = leapfrog(chains.x, z, chains.grad, step, num_leapfrog, wrapped, precond)
-        log_ratio = (log_p - 0.5 * np.sum(p_end**2, axis=1)) - (chains.log_p - 0.5 * np.sum(z**2, axis=1))
-    accept, prob = metropolis_accept(log_ratio, rng.random(chains.x.shape[0]))
-    keep = accept[:, None]
-    new = _Chains(np.where(keep, proposal, chains.x), np.where(accept, log_p, chains.log_p),
-                  None if chains.grad is None else np.where(keep, grad, chains.grad))
-    return new, accept, prob
-
-
-def _default_step(kernel: str, dim: int) -> float:
-    """Optimal-scaling step for a standard normal target in ``dim`` dimensions."""
-    return {"rwm": 2.38 / np.sqrt(dim), "mala": 1.65 * dim ** (-1.0 / 3.0), "hmc": dim ** (-0.25)}[kernel]
-
-
-def _initial_step(kernel: str, chains: _Chains, precond: Preconditioner, log_density: LogDensityFn,
-                  rng: np.random.Generator) -> tuple[float, int]:
-    """Halve the default step until the mean acceptance probability exceeds half the target.
-
-    Trial transitions are discarded (HMC trials use one leapfrog step). Returns the step and the
-    number of batched evaluations spent.
-    """
-    step = _default_step(kernel, chains.x.shape[1])
-    evaluations = 0
-    for _ in range(40):
-        _, _, prob = _transition(kernel, chains, np.full(chains.x.shape[0], step), 1, precond,
-                                 log_density, rng)
-        evaluations += 1
-        if prob.mean() >= 0.5 * TARGET_ACCEPT[kernel]:
-            break
-        step *= 0.5
-    return step, evaluations
+def _check_initial(initial: np.ndarray) -> np.ndarray:
+    x0 = np.array(initial, dtype=np.float64)
+    if x0.ndim != 2 or x0.shape[0] < 2 or x0.shape[1] < 1:
+        raise ValueError(f"initial: expected shape (C >= 2, d >= 1), got {x0.shape}")
+    if not np.all(np.isfinite(x0)):
+        raise ValueError("initial: contains NaN or infinite values")
+    return x0
 
 
 def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int, *,
@@ -477,15 +408,10 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     Returns:
         An ``MCMCResult`` with ``draws`` of shape ``(C, num_draws, d)``.
     """
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel: expected one of {KERNELS}, got {kernel!r}")
+    kern = get_kernel(kernel)
     if preconditioner not in PRECONDITIONERS:
         raise ValueError(f"preconditioner: expected one of {PRECONDITIONERS}, got {preconditioner!r}")
-    x0 = np.array(initial, dtype=np.float64)
-    if x0.ndim != 2 or x0.shape[0] < 2 or x0.shape[1] < 1:
-        raise ValueError(f"initial: expected shape (C >= 2, d >= 1), got {x0.shape}")
-    if not np.all(np.isfinite(x0)):
-        raise ValueError("initial: contains NaN or infinite values")
+    x0 = _check_initial(initial)
     num_draws = _check_int("num_draws", num_draws, 1)
     warmup = _check_int("warmup", warmup, 0)
     thin = _check_int("thin", thin, 1)
@@ -493,222 +419,113 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     max_leapfrog = _check_int("max_leapfrog", max_leapfrog, 1)
     warmup_max_leapfrog = max_leapfrog if warmup_max_leapfrog is None else \
         _check_int("warmup_max_leapfrog", warmup_max_leapfrog, 1)
-    target = TARGET_ACCEPT[kernel] if target_accept is None else float(target_accept)
+    target = kern.target_accept if target_accept is None else float(target_accept)
     if not 0.0 < target < 1.0:
         raise ValueError(f"target_accept: expected a value in (0, 1), got {target_accept!r}")
     if not (np.isfinite(trajectory_length) and trajectory_length > 0):
         raise ValueError(f"trajectory_length: expected a finite value > 0, got {trajectory_length!r}")
-
-    rng = np.random.default_rng(seed)
     num_chains, dim = x0.shape
-    need_grad = kernel != "rwm"
     precond = initial_preconditioner if initial_preconditioner is not None else Preconditioner.identity(dim)
     if precond.chol.shape != (dim, dim):
         raise ValueError(f"initial_preconditioner: expected a ({dim}, {dim}) factor, got {precond.chol.shape}")
 
-    log_p, grad = _evaluate(log_density, x0, need_grad)
-    if not np.all(np.isfinite(log_p)):
+    rng = np.random.default_rng(seed)
+    state = kern.init(x0, log_density)
+    if not np.all(np.isfinite(state.log_density)):
         raise ValueError("initial: log_density is not finite at every starting point")
-    chains = _Chains(x0, log_p, grad if need_grad else None)
-    evaluations = 1
-
-    def leapfrog_steps(step: float, cap: int = max_leapfrog) -> int:
-        return int(np.clip(round(trajectory_length / step), 1, cap)) if kernel == "hmc" else 1
-
-    if warmup > 0:
-        step0, spent = _initial_step(kernel, chains, precond, log_density, rng)
-    else:
-        step0, spent = _default_step(kernel, dim), 0
-    evaluations += spent
-    adapt = DualAveraging.start(step0, target)
-    windows = warmup_windows(warmup) if adapt_preconditioner else []
-    window_draws: list[np.ndarray] = []
-
+    step0, evaluations = find_initial_step(kern, state, precond, log_density, rng) if warmup > 0 else \
+        (kern.default_step(dim), 0)
+    evaluations += 1
     total = warmup + num_draws * thin
-    draws = np.empty((num_chains, num_draws, dim))
-    draw_log_p = np.empty((num_chains, num_draws))
-    accepted = np.zeros(num_chains)
-    states = np.empty((num_chains, num_draws * thin, dim))  # every post-warm-up state
 
-    for it in range(total):
-        in_warmup = it < warmup
-        step = adapt.step if in_warmup else adapt.final_step
-        # Short warm-up trajectories only until the final buffer: the step size is then tuned
-        # with the trajectory length the retained draws use.
-        short = in_warmup and (not windows or it < windows[-1][1])
-        steps = leapfrog_steps(step, warmup_max_leapfrog if short else max_leapfrog)
-        step_c = np.full(num_chains, step)
-        if kernel == "hmc":
-            step_c = step_c * rng.uniform(0.9, 1.1, size=num_chains)
-        chains, accept, prob = _transition(kernel, chains, step_c, steps, precond, log_density, rng)
-        evaluations += steps
-        if in_warmup:
-            adapt = adapt.update(float(prob.mean()))
-            if any(start <= it < end for start, end in windows):
-                window_draws.append(chains.x.copy())
-            if any(it + 1 == end for _, end in windows):
-                precond = estimate_preconditioner(np.stack(window_draws, axis=1), preconditioner, precond)
-                window_draws = []
-                # Restart the adaptation near the current step size: the new metric changes it.
-                adapt = DualAveraging.start(adapt.final_step, target, bias=1.0)
-        else:
-            accepted += accept
-            states[:, it - warmup] = chains.x
-            k, r = divmod(it - warmup + 1, thin)
-            if r == 0:
-                draws[:, k - 1] = chains.x
-                draw_log_p[:, k - 1] = chains.log_p
+    def transition(state: ChainState, step: float, precond: Preconditioner, cap: int
+                   ) -> tuple[ChainState, StepInfo]:
+        nonlocal evaluations
+        params = KernelParams(step_sizes(kern, step, num_chains, rng), precond,
+                              num_leapfrog_steps(kern, step, trajectory_length, cap))
+        state, info = kern.step(rng, state, log_density, params)
+        evaluations += info.num_evaluations
+        return state, info
+
+    warm = WarmupState(DualAveraging.start(step0, target), precond)
+    for it, stage in enumerate(warmup_schedule(warmup, adapt_preconditioner)):
+        state, info = transition(state, warm.step_size.step, warm.preconditioner,
+                                 warmup_max_leapfrog if stage.short else max_leapfrog)
+        warm = warmup_update(warm, stage, state, info, preconditioner)
         if progress is not None:
             progress(it + 1, total)
 
-    final_step = adapt.final_step if warmup > 0 else step0
     iterations = num_draws * thin
-    r_hat = rank_normalized_r_hat(states) if iterations >= 4 else np.full(dim, np.nan)
-    ess = bulk_effective_sample_size(states) if iterations >= 8 else np.full(dim, np.nan)
-    return MCMCResult(draws=draws, log_density=draw_log_p,
-                      acceptance_rate=accepted / (num_draws * thin), step_size=final_step,
-                      preconditioner=precond, kernel=kernel, warmup=warmup, thin=thin,
-                      num_leapfrog=leapfrog_steps(final_step), num_evaluations=evaluations,
-                      r_hat=r_hat, ess=ess)
+    states = np.empty((num_chains, iterations, dim))  # every post-warm-up state
+    state_log_p = np.empty((num_chains, iterations))
+    accepted, divergent = np.zeros(num_chains), np.zeros(num_chains, dtype=np.int64)
+    for it in range(iterations):
+        state, info = transition(state, warm.step_size.final_step, warm.preconditioner, max_leapfrog)
+        accepted += info.is_accepted
+        divergent += info.is_divergent
+        states[:, it], state_log_p[:, it] = state.position, state.log_density
+        if progress is not None:
+            progress(warmup + it + 1, total)
+
+    final_step = warm.step_size.final_step if warmup > 0 else step0
+    return MCMCResult(draws=np.ascontiguousarray(states[:, thin - 1::thin]),
+                      log_density=np.ascontiguousarray(state_log_p[:, thin - 1::thin]),
+                      acceptance_rate=accepted / iterations, step_size=final_step,
+                      preconditioner=warm.preconditioner, kernel=kernel, warmup=warmup, thin=thin,
+                      num_leapfrog=num_leapfrog_steps(kern, final_step, trajectory_length, max_leapfrog),
+                      num_evaluations=evaluations,
+                      r_hat=rank_normalized_r_hat(states) if iterations >= 4 else np.full(dim, np.nan),
+                      ess=bulk_effective_sample_size(states) if iterations >= 8 else np.full(dim, np.nan),
+                      num_divergent=divergent,
+                      continuation=ChainContinuation(kernel, state, rng.bit_generator.state,
+                                                     warm.step_size.final_step, warm.preconditioner,
+                                                     float(trajectory_length), max_leapfrog))
 
 
-# --------------------------------------------------------------------------------------------
-# Diagnostics
-# --------------------------------------------------------------------------------------------
+def continue_chains(log_density: LogDensityFn, continuation: ChainContinuation, num_draws: int, *,
+                    progress: "ProgressFn | None" = None) -> MCMCResult:
+    """Extend the chains of a finished run by ``num_draws`` iterations of its frozen kernel.
 
-
-def _check_draws(draws: np.ndarray, min_draws: int) -> np.ndarray:
-    x = np.asarray(draws, dtype=np.float64)
-    if x.ndim == 2:
-        x = x[:, :, None]
-    if x.ndim != 3 or x.shape[0] < 1 or x.shape[1] < min_draws:
-        raise ValueError(f"draws: expected shape (C, N >= {min_draws}, d), got {np.shape(draws)}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("draws: contains NaN or infinite values")
-    return x
-
-
-def split_chains(draws: np.ndarray) -> np.ndarray:
-    """Split each chain into halves (the middle draw of an odd chain is dropped).
-
-    Args:
-        draws: ``(C, N, d)``, ``N >= 2``.
-    Returns:
-        ``(2C, N // 2, d)``.
-    """
-    x = _check_draws(draws, 2)
-    half = x.shape[1] // 2
-    return np.concatenate([x[:, :half], x[:, x.shape[1] - half:]], axis=0)
-
-
-def rank_normalize(draws: np.ndarray) -> np.ndarray:
-    """Normal scores of the pooled ranks (Vehtari et al. 2021): ``Phi^-1((r - 3/8) / (S + 1/4))``.
+    ``sample_chains(..., n1 + n2)``'s post-warm-up states equal those of ``sample_chains(..., n1)``
+    followed by ``continue_chains(log_density, result.continuation, n2)`` (same generator stream),
+    so a run can be lengthened in blocks until its diagnostics pass.
 
     Args:
-        draws: ``(C, N, d)``.
+        log_density: the run's target.
+        continuation: ``MCMCResult.continuation`` of the run (or of a previous continuation).
+        num_draws: iterations to add, every one kept (``>= 1``).
+        progress: optional ``progress(step, num_draws)`` callback, once per iteration.
     Returns:
-        ``(C, N, d)``; ties get their average rank.
+        An ``MCMCResult`` of the new iterations only: ``draws`` ``(C, num_draws, d)``, ``warmup``
+        0, ``thin`` 1, acceptance, evaluations and diagnostics of these iterations, and the
+        continuation after them.
     """
-    x = _check_draws(draws, 1)
-    c, n, d = x.shape
-    ranks = rankdata(x.reshape(c * n, d), axis=0)
-    return ndtri((ranks - 0.375) / (c * n + 0.25)).reshape(c, n, d)
-
-
-def _r_hat(chains: np.ndarray) -> np.ndarray:
-    """Potential scale reduction over the given chains ``(M, n, d) -> (d,)`` (no splitting)."""
-    m, n, _ = chains.shape
-    within = chains.var(axis=1, ddof=1).mean(axis=0)
-    between = n * chains.mean(axis=1).var(axis=0, ddof=1)
-    var_plus = (n - 1) / n * within + between / n
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.sqrt(var_plus / within)
-    # Every draw of a coordinate equal: no evidence of non-convergence.
-    return np.where((within == 0) & (between == 0), 1.0, r)
-
-
-def split_r_hat(draws: np.ndarray) -> np.ndarray:
-    """Split R-hat (Gelman et al., BDA3, section 11.4) of each coordinate.
-
-    Chains are split in halves, then ``sqrt(var_plus / W)`` with ``W`` the mean within-chain
-    variance, ``B`` the between-chain variance of the means (times ``n``) and
-    ``var_plus = (n - 1)/n W + B/n``.
-
-    Args:
-        draws: ``(C, N, d)`` (or ``(C, N)`` for one coordinate), ``N >= 4``.
-    Returns:
-        ``(d,)``; ``1`` for a constant coordinate, ``inf`` if chains are constant but differ.
-    """
-    return _r_hat(split_chains(_check_draws(draws, 4)))
-
-
-def rank_normalized_r_hat(draws: np.ndarray) -> np.ndarray:
-    """Rank-normalised split R-hat (Vehtari et al. 2021): max of the bulk and folded (tail) values.
-
-    Robust to heavy tails and sensitive to chains that differ in scale but not location.
-
-    Args:
-        draws: ``(C, N, d)``, ``N >= 4``.
-    Returns:
-        ``(d,)``.
-    """
-    x = _check_draws(draws, 4)
-    bulk = split_r_hat(rank_normalize(x))
-    folded = np.abs(x - np.median(x.reshape(-1, x.shape[2]), axis=0))
-    return np.maximum(bulk, split_r_hat(rank_normalize(folded)))
-
-
-def _autocovariance(x: np.ndarray) -> np.ndarray:
-    """Biased autocovariance of each chain and coordinate by FFT; ``(M, n, d) -> (M, n, d)``."""
-    n = x.shape[1]
-    centred = x - x.mean(axis=1, keepdims=True)
-    size = 1 << int(np.ceil(np.log2(2 * n)))
-    spectrum = np.fft.rfft(centred, n=size, axis=1)
-    return np.fft.irfft(spectrum * np.conj(spectrum), n=size, axis=1)[:, :n] / n
-
-
-def effective_sample_size(draws: np.ndarray) -> np.ndarray:
-    """Multi-chain effective sample size of each coordinate (BDA3 11.5 / Stan), chains as given.
-
-    ``rho_t = 1 - (W - mean_m acov_m(t)) / var_plus``; Geyer's initial positive sequence of pair
-    sums ``P_k = rho_2k + rho_2k+1`` truncated at the first negative pair and made monotone
-    non-increasing; ``tau = -1 + 2 sum_k P_k``; ``ESS = C N / tau``, capped at
-    ``C N log10(C N)`` as in Stan.
-
-    Args:
-        draws: ``(C, N, d)`` (or ``(C, N)``), ``N >= 4``.
-    Returns:
-        ``(d,)``; NaN for a constant coordinate.
-    """
-    x = _check_draws(draws, 4)
-    m, n, d = x.shape
-    acov = _autocovariance(x)  # (M, n, d)
-    within = acov[:, 0].mean(axis=0) * n / (n - 1)  # mean within-chain variance (ddof=1)
-    var_plus = within * (n - 1) / n
-    if m > 1:
-        var_plus = var_plus + x.mean(axis=1).var(axis=0, ddof=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rho = 1.0 - (within - acov.mean(axis=0)) / var_plus  # (n, d)
-    rho[0] = 1.0
-    pairs = n // 2
-    sums = rho[0 : 2 * pairs : 2] + rho[1 : 2 * pairs : 2]  # (pairs, d)
-    positive = np.cumprod(sums > 0, axis=0).astype(bool)  # initial positive sequence
-    monotone = np.minimum.accumulate(np.where(positive, sums, np.inf), axis=0)
-    tau = -1.0 + 2.0 * np.sum(np.where(positive, monotone, 0.0), axis=0)
-    total = m * n
-    tau = np.maximum(tau, 1.0 / np.log10(total)) if total > 1 else tau
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ess = total / tau
-    return np.where(var_plus > 0, ess, np.nan)
-
-
-def bulk_effective_sample_size(draws: np.ndarray) -> np.ndarray:
-    """Bulk ESS (Vehtari et al. 2021): ``effective_sample_size`` of rank-normalised split chains.
-
-    Args:
-        draws: ``(C, N, d)``, ``N >= 8``.
-    Returns:
-        ``(d,)``.
-    """
-    x = _check_draws(draws, 8)
-    return effective_sample_size(rank_normalize(split_chains(x)))
+    kern = get_kernel(continuation.kernel)
+    num_draws = _check_int("num_draws", num_draws, 1)
+    rng = np.random.Generator(np.random.PCG64(0))
+    rng.bit_generator.state = continuation.rng_state
+    state, step, precond = continuation.state, continuation.step_size, continuation.preconditioner
+    num_chains, dim = state.position.shape
+    cap = num_leapfrog_steps(kern, step, continuation.trajectory_length, continuation.max_leapfrog)
+    states = np.empty((num_chains, num_draws, dim))
+    state_log_p = np.empty((num_chains, num_draws))
+    accepted, divergent = np.zeros(num_chains), np.zeros(num_chains, dtype=np.int64)
+    evaluations = 0
+    for it in range(num_draws):
+        state, info = kern.step(rng, state, log_density,
+                                KernelParams(step_sizes(kern, step, num_chains, rng), precond, cap))
+        evaluations += info.num_evaluations
+        accepted += info.is_accepted
+        divergent += info.is_divergent
+        states[:, it], state_log_p[:, it] = state.position, state.log_density
+        if progress is not None:
+            progress(it + 1, num_draws)
+    return MCMCResult(draws=states, log_density=state_log_p, acceptance_rate=accepted / num_draws,
+                      step_size=step, preconditioner=precond, kernel=continuation.kernel, warmup=0, thin=1,
+                      num_leapfrog=cap, num_evaluations=evaluations,
+                      r_hat=rank_normalized_r_hat(states) if num_draws >= 4 else np.full(dim, np.nan),
+                      ess=bulk_effective_sample_size(states) if num_draws >= 8 else np.full(dim, np.nan),
+                      num_divergent=divergent,
+                      continuation=ChainContinuation(continuation.kernel, state, rng.bit_generator.state, step,
+                                                     precond, continuation.trajectory_length,
+                                                     continuation.max_leapfrog))

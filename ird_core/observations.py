@@ -52,10 +52,11 @@ import numpy as np
 from scipy.special import logsumexp
 from scipy.stats import chi2
 
-from ird_core.terrain import NUM_TERRAINS, SAFE_TERRAINS, Terrain, as_generator
+from ird_core.terrain import SAFE_TERRAINS, Terrain, as_generator
 
 __all__ = [
     "DEFAULT_DIM",
+    "NUM_OBSERVED_TERRAINS",
     "SAFE_SEPARATION",
     "LAVA_DISTANCE",
     "EIGENVALUE_RANGE",
@@ -71,6 +72,9 @@ SAFE_SEPARATION: float = 6.0
 LAVA_DISTANCE: float = 15.0
 EIGENVALUE_RANGE: tuple[float, float] = (0.5, 1.5)
 _RIDGE: float = 1e-6
+# The terrains with an observation Gaussian (labels 0..3): the latent conditions have no gold,
+# and a fixed count keeps every model's random draws independent of later terrains.
+NUM_OBSERVED_TERRAINS: int = 4
 
 
 def _random_rotation(dim: int, rng: np.random.Generator) -> np.ndarray:
@@ -96,10 +100,10 @@ class ObservationModel:
     def __post_init__(self) -> None:
         means = np.array(self.means, dtype=np.float64)
         covariances = np.array(self.covariances, dtype=np.float64)
-        if means.ndim != 2 or means.shape[0] != NUM_TERRAINS or means.shape[1] < 1:
+        if means.ndim != 2 or means.shape[0] != NUM_OBSERVED_TERRAINS or means.shape[1] < 1:
             raise ValueError(f"means must have shape (4, D), got {means.shape}")
         dim = means.shape[1]
-        if covariances.shape != (NUM_TERRAINS, dim, dim):
+        if covariances.shape != (NUM_OBSERVED_TERRAINS, dim, dim):
             raise ValueError(
                 f"covariances must have shape (4, {dim}, {dim}), got {covariances.shape}"
             )
@@ -166,12 +170,12 @@ def make_observation_model(
     safe -= safe.mean(axis=0)
     direction = rng.standard_normal(dim)
     lava = lava_distance * direction / np.linalg.norm(direction)
-    means = np.zeros((NUM_TERRAINS, dim))
+    means = np.zeros((NUM_OBSERVED_TERRAINS, dim))
     means[list(SAFE_TERRAINS)] = safe
     means[Terrain.LAVA] = lava
 
-    covariances = np.empty((NUM_TERRAINS, dim, dim))
-    for k in range(NUM_TERRAINS):  # four terrains, not cells
+    covariances = np.empty((NUM_OBSERVED_TERRAINS, dim, dim))
+    for k in range(NUM_OBSERVED_TERRAINS):  # four terrains, not cells
         rotation = _random_rotation(dim, rng)
         eigenvalues = rng.uniform(low, high, size=dim)
         cov = (rotation * eigenvalues) @ rotation.T
@@ -195,12 +199,12 @@ def sample_observations(
     labels = np.asarray(labels)
     if not np.issubdtype(labels.dtype, np.integer):
         raise ValueError(f"labels must hold integer Terrain labels, got dtype {labels.dtype}")
-    if labels.size and (labels.min() < 0 or labels.max() >= NUM_TERRAINS):
-        raise ValueError(f"labels holds values outside 0..{NUM_TERRAINS - 1}")
+    if labels.size and (labels.min() < 0 or labels.max() >= NUM_OBSERVED_TERRAINS):
+        raise ValueError(f"labels holds values outside 0..{NUM_OBSERVED_TERRAINS - 1}")
     rng = as_generator(seed)
     noise = rng.standard_normal(labels.shape + (model.dim,))
     out = np.empty_like(noise)
-    for k in range(NUM_TERRAINS):  # four terrains, each vectorised over its cells
+    for k in range(NUM_OBSERVED_TERRAINS):  # four terrains, each vectorised over its cells
         mask = labels == k
         out[mask] = model.means[k] + noise[mask] @ model.cholesky[k].T
     return out

@@ -8,8 +8,7 @@ path of ``T + 1`` cells from the start and the exact value of the objective it m
 - ``trajectory`` ``min_i (w_i . phi(xi) - (T + 1) b_i)``: not an MDP; solved exactly, by default
   with a branch and bound over the time-expanded graph whose bounds are exact DPs
   (``"label-bb"``), or as a mixed-integer program over unit flows in that graph with HiGHS
-  (``"milp-highs"``). No relaxation is ever returned as a plan: the LP relaxation only supplies
-  bounds. See :func:`plan_path`.
+  (``"milp-highs"``). The solver lives in :mod:`ird_core.trajectory_solver`.
 
 Per-step reward baselines ``b_i`` (:func:`reward_baselines`):
 
@@ -36,15 +35,13 @@ iterations and memory chunks only.
 from __future__ import annotations
 
 import math
-import time
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 
-from ird_core.mdp import GridMDP, log_partition, optimal_path, successor_table, validate_path
+from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT, check_magnitude
+from ird_core.mdp import GridMDP, log_partition, optimal_path, validate_path
+from ird_core.trajectory_solver import OutOfTime, plan_trajectory, states_to_cells
 
 __all__ = [
     "MODES",
@@ -53,6 +50,10 @@ __all__ = [
     "STATISTICS",
     "Plan",
     "PlanningTimeout",
+    "check_start",
+    "check_plan_arguments",
+    "check_plan_size",
+    "plan_work",
     "reward_baselines",
     "sample_cell_rewards",
     "per_step_reward",
@@ -71,28 +72,6 @@ SOLVERS: dict[str, tuple[str, ...]] = {
     "trajectory": ("label-bb", "milp-highs"),
 }
 STATISTICS: tuple[str, ...] = ("std", "range")
-
-# HiGHS settings for the trajectory MILP: zero optimality gap, tight feasibility tolerances (the
-# problem is normalised so that per-cell rewards are at most 1 in magnitude).
-_HIGHS_OPTIONS = {
-    "mip_rel_gap": 0.0,
-    "mip_abs_gap": 0.0,
-    "mip_feasibility_tolerance": 1e-9,
-    "primal_feasibility_tolerance": 1e-9,
-}
-# Relative slack when comparing an exactly recomputed path value with a DP bound: only float
-# rounding of two summation orders separates them.
-_CERTIFY_RTOL = 1e-12
-# Column-generation rounds for the LP relaxation (each: one small LP and one DP).
-_COLUMN_GENERATION_ITERATIONS = 200
-# Labels of a node checked as dominators of the others (by the largest sum of returns).
-_DOMINANCE_DEPTH = 16
-# Beam widths of the incumbent-improving heuristic run before the exact label search.
-_BEAM_WIDTHS = (256, 4096)
-# Largest number of label entries (labels x samples) the trajectory label search may hold.
-_LABEL_BUDGET = 20_000_000
-# Largest K * K * R boolean work (R = reachable cells) spent on pruning dominated samples.
-_DOMINANCE_BUDGET = 400_000_000
 
 
 @dataclass(frozen=True)
@@ -149,7 +128,7 @@ def _check_weights(weights: np.ndarray, num_features: int) -> np.ndarray:
         raise ValueError(f"weights: expected shape (K >= 1, {num_features}), got {w.shape}")
     if not np.all(np.isfinite(w)):
         raise ValueError("weights: contains NaN or infinite values")
-    return w
+    return check_magnitude("weights", w, MAX_ABS_WEIGHT)
 
 
 def _check_reference(reference_features: np.ndarray | None, num_features: int) -> np.ndarray | None:
@@ -160,7 +139,77 @@ def _check_reference(reference_features: np.ndarray | None, num_features: int) -
         raise ValueError(f"reference_features: expected shape ({num_features},), got {f.shape}")
     if not np.all(np.isfinite(f)):
         raise ValueError("reference_features: contains NaN or infinite values")
-    return f
+    return check_magnitude("reference_features", f, MAX_ABS_WEIGHT)
+
+
+def check_start(start: tuple[int, int], height: int, width: int) -> tuple[int, int]:
+    """A start cell on an ``height x width`` map, as ``(row, col)`` ints.
+
+    Raises:
+        ValueError: naming ``start_row`` or ``start_col`` (the coordinate that is off the map).
+    """
+    row, col = (int(v) for v in start)
+    if not 0 <= row < height:
+        raise ValueError(f"start_row: {row} is off the map (height {height})")
+    if not 0 <= col < width:
+        raise ValueError(f"start_col: {col} is off the map (width {width})")
+    return row, col
+
+
+def check_plan_arguments(
+    mode: str,
+    baseline: str,
+    weights: np.ndarray | None = None,
+    num_features: int | None = None,
+    reference_features: np.ndarray | None = None,
+    *,
+    solver: str | None = None,
+    time_limit: float | None = None,
+) -> np.ndarray | None:
+    """The argument checks of :func:`plan_path` that need no planning.
+
+    A caller that must refuse a bad request before it queues the plan (the planner node) calls
+    this first with what it has: ``weights`` and ``reference_features`` are checked only when
+    given, against ``num_features`` (``d``).
+
+    Returns:
+        ``weights`` as a finite ``(K, d)`` float64 array (``None`` if not given).
+    Raises:
+        ValueError: naming ``mode``, ``baseline``, ``solver``, ``time_limit``, ``weights`` or
+            ``reference_features``.
+    """
+    _check_choice(mode, "mode", MODES)
+    _check_choice(baseline, "baseline", BASELINES)
+    if solver is not None:
+        _check_choice(solver, "solver", SOLVERS[mode])
+    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
+                                   or not time_limit > 0):
+        raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
+    if weights is None or num_features is None:
+        return None
+    w = _check_weights(weights, num_features)
+    if mode == "literal" and len(w) != 1:
+        raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
+    _check_reference(reference_features, num_features)
+    return w
+
+
+def plan_work(num_samples: int, horizon: int, height: int, width: int) -> int:
+    """``K x (T + 1) x H x W``: the size of the largest table a plan builds (the log_z baseline's
+    and the trajectory solver's per-sample value tables), and the order of its time and memory."""
+    return int(num_samples) * (int(horizon) + 1) * int(height) * int(width)
+
+
+def check_plan_size(num_samples: int, horizon: int, height: int, width: int, max_work: int) -> None:
+    """Refuse a plan whose :func:`plan_work` exceeds ``max_work`` before any work starts.
+
+    Raises:
+        ValueError: naming ``weights`` (the samples are what a request most easily inflates).
+    """
+    work = plan_work(num_samples, horizon, height, width)
+    if work > max_work:
+        raise ValueError(f"weights: {num_samples} samples x horizon {horizon} x {height}x{width} map = {work:.3g} "
+                         f"exceeds max_plan_work={max_work:.3g}")
 
 
 def _check_features(features: np.ndarray) -> np.ndarray:
@@ -169,7 +218,7 @@ def _check_features(features: np.ndarray) -> np.ndarray:
         raise ValueError(f"features: expected shape (H, W, d) with every dimension >= 1, got {f.shape}")
     if not np.all(np.isfinite(f)):
         raise ValueError("features: contains NaN or infinite values")
-    return f
+    return check_magnitude("features", f, MAX_ABS_FEATURE)
 
 
 # --------------------------------------------------------------------------- rewards
@@ -253,10 +302,8 @@ def path_objective(
         cells: ``T + 1`` ``(row, col)`` cells starting at the start.
         weights: ``(K, d)`` (``K = 1`` for ``literal``).
     """
-    _check_choice(mode, "mode", MODES)
-    w = _check_weights(weights, mdp.num_features)
-    if mode == "literal" and len(w) != 1:
-        raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
+    w = check_plan_arguments(mode, baseline, weights, mdp.num_features, reference_features)
+    assert w is not None
     return _objective(mdp, validate_path(mdp, cells), w, reward_baselines(mdp, w, baseline, reference_features), mode)
 
 
@@ -287,35 +334,12 @@ def plan_path(
     (exact DP, ties broken "stay" first).
 
     ``trajectory``, ``max_xi min_i f_i(xi)`` with ``f_i(xi) = sum_t q_i(s_t)`` and
-    ``q_i = w_i . F - b_i``, is solved exactly:
-
-    1. Samples that cannot change the minimum are dropped: duplicate ``q_i`` rows, and ``q_i``
-       dominated on every reachable cell by another sample's (``q_j <= q_i``).
-    2. Bounds. Each sample's own DP optimum bounds the objective from above; so does
-       ``max_xi lam . f(xi)`` (one DP) for any ``lam`` on the simplex. The best ``lam`` gives the
-       LP relaxation (mixtures of paths), found by column generation: a master LP over path
-       columns (HiGHS) priced by DP. Every bound used is an exact DP value, never an LP float.
-    3. Incumbents: the per-step path, the bottleneck sample's path, the generated columns, then
-       beam searches. If the incumbent reaches the upper bound it is returned at once.
-    4. ``"label-bb"`` (default): breadth-first branch and bound over the time-expanded graph.
-       Labels are partial paths (their return vectors); a label is pruned when the bounds of
-       step 2 applied to its completions cannot beat the incumbent, or when another label at
-       the same node is at least as good for every sample; labels with the same multiset of
-       visited cells merge. Memory is capped; past the cap the automatic choice falls back on
-       the MILP.
-    5. ``"milp-highs"``: binary edge variables ``x[t, s, move]`` on the time-expanded graph
-       restricted to (time, state) pairs reachable from the start within the horizon AND whose
-       best path through them (DP bounds of step 2) could beat the incumbent; unit flow out of
-       the start, conservation at each inner (time, state), visit counts
-       ``n[c] = sum of edges into c``, and ``z <= q_i(s_0) + sum_c q_i(c) n[c]`` per kept
-       sample; maximise ``z``. HiGHS runs at zero gap with 1e-9 feasibility tolerances on
-       rewards normalised to ``|q| <= 1``; a false "infeasible" (a HiGHS 1.12 presolve error;
-       the model always holds the incumbent) is retried without presolve.
+    ``q_i = w_i . F - b_i``, is solved exactly by :func:`ird_core.trajectory_solver.plan_trajectory`
+    (sample reduction, DP and LP-relaxation bounds, incumbents, then the label search or the
+    MILP; the module docstring explains each step and the exactness guarantee).
 
     The returned path is checked with ``validate_path`` and its objective is recomputed from
-    its cells. Exactness: a path better than the returned one by more than
-    ``2e-12 * (T + 1) * max|q|`` (float rounding slack) does not exist, for ``label-bb``; for
-    ``milp-highs`` up to HiGHS's tolerances as well.
+    its cells.
 
     Args:
         mdp: the test MDP.
@@ -330,18 +354,22 @@ def plan_path(
         a :class:`Plan`.
     Raises:
         PlanningTimeout: ``time_limit`` passed first; its ``plan`` is the best path so far.
-        RuntimeError: HiGHS failed, or ``solver="label-bb"`` ran out of memory budget.
+        RuntimeError: HiGHS failed, ``solver="label-bb"`` ran out of memory budget, or the
+            objective is not finite.
     """
-    _check_choice(mode, "mode", MODES)
-    _check_choice(baseline, "baseline", BASELINES)
-    if solver is not None:
-        _check_choice(solver, "solver", SOLVERS[mode])
-    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
-                                   or not time_limit > 0):
-        raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
-    w = _check_weights(weights, mdp.num_features)
-    if mode == "literal" and len(w) != 1:
-        raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
+    w = check_plan_arguments(mode, baseline, weights, mdp.num_features, reference_features,
+                             solver=solver, time_limit=time_limit)
+    assert w is not None
+    check_magnitude("features", mdp.features, MAX_ABS_FEATURE)
+    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit)
+    if not np.isfinite(plan.objective):  # unreachable within the checked ranges; never a success
+        raise RuntimeError(f"objective: {plan.objective!r} is not finite; no plan is returned")
+    return plan
+
+
+def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_features: np.ndarray | None,
+          solver: str | None, time_limit: float | None) -> Plan:
+    """:func:`plan_path` on checked arguments."""
     b = reward_baselines(mdp, w, baseline, reference_features)
     q = _shifted_rewards(mdp, w, b)
     if mode == "literal":  # the baseline shifts every path equally: plan on the raw reward
@@ -353,9 +381,9 @@ def plan_path(
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
     try:
-        cells, bound, used = _plan_trajectory(mdp, q, solver=solver, time_limit=time_limit)
-    except _OutOfTime as exc:
-        cells = _cells_of(mdp, exc.states)
+        cells, bound, used = plan_trajectory(mdp, q, solver=solver, time_limit=time_limit)
+    except OutOfTime as exc:
+        cells = states_to_cells(mdp, exc.states)
         value = _objective(mdp, cells, w, b, mode)
         plan = Plan(_as_cells(cells), value, mode, baseline, exc.solver, max(exc.bound, value))
         raise PlanningTimeout(f"time_limit: {time_limit} s passed before the trajectory optimum was proven; "
@@ -372,506 +400,6 @@ def _dp_path(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
     """``optimal_path`` for an ``(H, W)`` reward, as a checked ``(T + 1, 2)`` array."""
     cells, _ = optimal_path(mdp, rewards)
     return validate_path(mdp, cells)
-
-
-# --------------------------------------------------------------------------- trajectory mode
-
-
-class _BudgetExceeded(Exception):
-    """The label search would need more memory than its budget."""
-
-
-class _OutOfTime(Exception):
-    """The time limit passed; carries the best path found (state indices or ``None``), the best
-    proven upper bound and the solver that was running."""
-
-    def __init__(self, states: np.ndarray | None, bound: float = math.inf, solver: str = "") -> None:
-        super().__init__("time limit reached")
-        self.states, self.bound, self.solver = states, bound, solver
-
-
-def _start_distance(mdp: GridMDP) -> np.ndarray:
-    """``(S,)`` Manhattan distance of every state from the start: state ``s`` can be occupied at
-    time ``t`` iff ``dist[s] <= t`` (a "stay" move is always available)."""
-    rows, cols = np.divmod(np.arange(mdp.num_states), mdp.width)
-    return np.abs(rows - mdp.start[0]) + np.abs(cols - mdp.start[1])
-
-
-def _successors(mdp: GridMDP) -> np.ndarray:
-    """``(S, 5)`` successor states, off-grid moves pointing at the sentinel index ``S``."""
-    table = successor_table(mdp.height, mdp.width)
-    return np.where(table < 0, mdp.num_states, table)
-
-
-def _reduce_samples(q: np.ndarray) -> np.ndarray:
-    """Indices of the samples that matter for ``min_i sum_t q_i(s_t)``.
-
-    Merges identical rows, then drops a sample ``i`` when another distinct sample ``j`` has
-    ``q_j <= q_i`` on every cell (``i`` is then never below ``j`` on any path). The minimal
-    rows survive, and every dropped row lies above one of them.
-
-    Args:
-        q: ``(K, R)`` shifted rewards on the reachable cells.
-    Returns:
-        sorted ``(K',)`` int64 indices into ``q``, ``K' >= 1``.
-    """
-    _, first = np.unique(q, axis=0, return_index=True)
-    kept = np.sort(first)
-    rows = q[kept]
-    k, r = rows.shape
-    if k * k * r > _DOMINANCE_BUDGET:  # too costly: keep every distinct sample
-        return kept
-    block = max(1, 20_000_000 // max(1, k * r))
-    dominated = np.zeros(k, dtype=bool)
-    for lo in range(0, k, block):  # blocks of samples, vectorised over pairs and cells
-        leq = np.all(rows[None, :, :] <= rows[lo : lo + block, None, :], axis=2)  # [i, j]: q_j <= q_i
-        leq[np.arange(leq.shape[0]), np.arange(lo, lo + leq.shape[0])] = False
-        dominated[lo : lo + block] = leq.any(axis=1)
-    return kept[~dominated]
-
-
-def _to_go(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Best reward still to collect, ``V[t, j, s] = max sum_{u = t+1..T} rewards[j, s_u]`` over
-    walks with ``s_t = s``; ``V[T] = 0``. Hard DP vectorised over reward rows and states.
-
-    Args:
-        rewards: ``(m, S)``.
-    Returns:
-        ``(T + 1, m, S)``.
-    """
-    succ = _successors(mdp)
-    values = np.zeros((mdp.horizon + 1,) + rewards.shape)
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for t in range(mdp.horizon - 1, -1, -1):
-        values[t] = np.concatenate([rewards + values[t + 1], sentinel], axis=1)[:, succ].max(axis=2)
-    return values
-
-
-def _best_returns(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Each row's own optimum ``max_xi sum_t rewards[j, s_t]``; ``(m, S)`` -> ``(m,)``.
-    The same recursion as :func:`_to_go`, keeping one time step in memory."""
-    succ = _successors(mdp)
-    values = np.zeros_like(rewards)
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for _ in range(mdp.horizon):
-        values = np.concatenate([rewards + values, sentinel], axis=1)[:, succ].max(axis=2)
-    return values[:, mdp.start_state] + rewards[:, mdp.start_state]
-
-
-def _come_from(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Best collected reward ``A[t, j, s] = max sum_{u = 0..t} rewards[j, s_u]`` over walks from
-    the start with ``s_t = s`` (``-inf`` where unreachable). Predecessors equal successors.
-
-    Args:
-        rewards: ``(m, S)``.
-    Returns:
-        ``(T + 1, m, S)``.
-    """
-    succ = _successors(mdp)
-    values = np.full((mdp.horizon + 1,) + rewards.shape, -np.inf)
-    values[0][:, mdp.start_state] = rewards[:, mdp.start_state]
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for t in range(1, mdp.horizon + 1):
-        values[t] = rewards + np.concatenate([values[t - 1], sentinel], axis=1)[:, succ].max(axis=2)
-    return values
-
-
-def _path_states(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """``optimal_path`` for an ``(S,)`` reward, as ``(T + 1,)`` state indices."""
-    cells = _dp_path(mdp, rewards.reshape(mdp.height, mdp.width))
-    return cells[:, 0] * mdp.width + cells[:, 1]
-
-
-def _trajectory_value(q: np.ndarray, states: np.ndarray) -> float:
-    """``min_i sum_t q_i(s_t)`` for ``q`` ``(K, S)`` and a path of state indices."""
-    return float(q[:, states].sum(axis=1).min())
-
-
-@dataclass(frozen=True)
-class _Relaxation:
-    """The LP relaxation ``max over mixtures of paths of min_i E[f_i]`` (equal to the MILP's LP
-    relaxation, the time-expanded flow polytope being integral), by column generation.
-
-    Every multiplier row ``lam`` lies on the simplex, so ``max_xi lam . f(xi)`` (one exact DP)
-    bounds the trajectory objective from above whatever the LP's accuracy.
-    """
-
-    multipliers: np.ndarray       # (m, K), rows on the simplex
-    bound: float                  # min over rows of max_xi lam . f(xi)
-    paths: tuple[np.ndarray, ...]  # the generated columns, as state indices
-
-
-def _lp_relaxation(mdp: GridMDP, q: np.ndarray, seeds: list[np.ndarray], tol: float) -> _Relaxation:
-    """Column generation: master LP over path columns (HiGHS), pricing by exact DP.
-
-    Args:
-        q: ``(K, S)`` shifted rewards.
-        seeds: initial paths (state indices).
-        tol: stop once pricing improves the master value by at most ``tol``.
-    """
-    k = len(q)
-    paths = list(seeds)
-    returns = [q[:, p].sum(axis=1) for p in paths]  # each (K,)
-    multipliers, bound = [], np.inf
-    for _ in range(_COLUMN_GENERATION_ITERATIONS):
-        columns = np.stack(returns, axis=1)  # (K, m)
-        m = columns.shape[1]
-        # max z  s.t.  z <= columns @ mu,  sum(mu) = 1,  mu >= 0.
-        res = linprog(np.r_[np.zeros(m), -1.0], A_ub=np.c_[-columns, np.ones(k)], b_ub=np.zeros(k),
-                      A_eq=np.r_[np.ones(m), 0.0][None, :], b_eq=[1.0],
-                      bounds=[(0.0, None)] * m + [(None, None)], method="highs")
-        if res.status != 0:
-            break  # the bound so far (and the per-sample bounds) remain valid
-        lam = np.clip(-res.ineqlin.marginals, 0.0, None)
-        lam = lam / lam.sum() if lam.sum() > 0 else np.full(k, 1.0 / k)
-        states = _path_states(mdp, lam @ q)
-        priced = float((lam @ q)[states].sum())
-        multipliers.append(lam)
-        bound = min(bound, priced)
-        if priced <= -res.fun + tol or any(np.array_equal(states, p) for p in paths):
-            break
-        paths.append(states)
-        returns.append(q[:, states].sum(axis=1))
-    return _Relaxation(np.array(multipliers).reshape(-1, k), bound, tuple(paths))
-
-
-def _dominated(labels: np.ndarray, nodes: np.ndarray, depth: int) -> np.ndarray:
-    """Labels dominated (``P_a >= P_b`` for every sample) by one of the ``depth`` labels with
-    the largest ``sum(P)`` at the same node.
-
-    Labels are totally ordered by (node, larger sum, index); a label is only dropped for an
-    earlier one, so every dropped label is dominated by a kept one and the optimum survives.
-
-    Args:
-        labels: ``(N, K)`` return vectors; nodes: ``(N,)`` states.
-    Returns:
-        ``(N,)`` bool, True where dominated.
-    """
-    order = np.lexsort((-labels.sum(axis=1), nodes))
-    sorted_nodes = nodes[order]
-    starts = np.flatnonzero(np.r_[True, sorted_nodes[1:] != sorted_nodes[:-1]])
-    sizes = np.diff(np.r_[starts, len(order)])
-    group = np.repeat(np.arange(len(starts)), sizes)
-    rank = np.arange(len(order)) - starts[group]
-    ranked = labels[order]
-    dominated = np.zeros(len(order), dtype=bool)
-    for j in range(depth):  # compare everyone with the j-th best label of its node
-        later = np.flatnonzero(rank > j)
-        if len(later) == 0:
-            break
-        dominated[later] |= np.all(ranked[starts[group[later]] + j] >= ranked[later], axis=1)
-    out = np.zeros(len(order), dtype=bool)
-    out[order] = dominated
-    return out
-
-
-def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                  slack: float, deadline: float = math.inf, beam: int | None = None) -> np.ndarray | None:
-    """Exact branch and bound over the time-expanded graph, breadth first (or a beam search).
-
-    A label is a partial path to ``(t, s)`` with return vector ``P`` (K,). It is pruned when no
-    completion can beat ``incumbent + slack``, by the bounds ``min_i (P_i + V_i(t, s))`` (each
-    sample alone) and ``lam . P + V_lam(t, s)`` for every multiplier row ``lam`` (because
-    ``min_i f_i <= lam . f``), and when another label at the same node is at least as good for
-    every sample (:func:`_dominated`). Only visit counts matter, so labels at the same node with the
-    same multiset of visited states (reorderings of stays make many) are merged; the multiset
-    is keyed exactly by two order-free 64-bit sums of per-state random integers (a false merge
-    needs a 128-bit collision).
-
-    With ``beam`` set, only the ``beam`` labels with the highest bound survive each step: a
-    fast heuristic for a better incumbent, exact no more.
-
-    Args:
-        q: ``(K, S)`` shifted rewards; multipliers: ``(m, K)`` simplex rows.
-        beam: ``None`` (exact) or the beam width.
-    Returns:
-        states of the best path beating ``incumbent + slack``, or ``None`` if there is none.
-    Raises:
-        _BudgetExceeded: more than ``_LABEL_BUDGET`` label entries at some time step.
-        _OutOfTime: ``time.monotonic()`` passed ``deadline``.
-    """
-    k = len(q)
-    if (mdp.horizon + 1) * mdp.num_states * (k + len(multipliers)) > _LABEL_BUDGET:
-        raise _BudgetExceeded(f"bound tables of {k + len(multipliers)} rows over {mdp.horizon + 1} steps")
-    succ = successor_table(mdp.height, mdp.width)
-    per_sample = _to_go(mdp, q).transpose(0, 2, 1)  # (T+1, S, K)
-    combined = _to_go(mdp, multipliers @ q).transpose(0, 2, 1)  # (T+1, S, m)
-    q_t = q.T
-    state_keys = np.random.default_rng(0x12D).integers(0, 2**63, size=(mdp.num_states, 2), dtype=np.uint64)
-    labels, nodes = q_t[[mdp.start_state]], np.array([mdp.start_state])
-    keys = state_keys[[mdp.start_state]]
-    parents: list[np.ndarray] = []
-    node_history = [nodes]
-    chunk = max(1, 4_000_000 // (5 * (k + len(multipliers))))
-    for t in range(1, mdp.horizon + 1):
-        kept = []
-        for lo in range(0, len(labels), chunk):  # bounded memory; vectorised inside
-            if time.monotonic() > deadline:
-                raise _OutOfTime(None)
-            nxt = succ[nodes[lo : lo + chunk]]
-            parent, move = np.nonzero(nxt >= 0)
-            child = nxt[parent, move]
-            parent += lo
-            value = labels[parent] + q_t[child]
-            bound = np.minimum((value + per_sample[t][child]).min(axis=1),
-                               (value @ multipliers.T + combined[t][child]).min(axis=1))
-            alive = bound > incumbent + slack
-            kept.append((parent[alive], child[alive], value[alive], bound[alive]))
-        parent, child, value, bound = (np.concatenate(a) for a in zip(*kept))
-        if len(child) == 0:
-            return None
-        key = np.concatenate([child[:, None].astype(np.uint64), keys[parent] + state_keys[child]], axis=1)
-        _, first = np.unique(key, axis=0, return_index=True)
-        first = first[~_dominated(value[first], child[first], _DOMINANCE_DEPTH)]
-        if beam is not None and len(first) > beam:  # keep the most promising labels
-            first = first[np.argpartition(-bound[first], beam)[:beam]]
-        elif len(first) * k > _LABEL_BUDGET:
-            raise _BudgetExceeded(f"{len(first)} labels of {k} samples at step {t}")
-        labels, nodes, keys = value[first], child[first], key[first, 1:]
-        parents.append(parent[first])
-        node_history.append(nodes)
-    final = labels.min(axis=1)
-    best = int(np.argmax(final))
-    if final[best] <= incumbent + slack:
-        return None
-    states = np.empty(mdp.horizon + 1, dtype=np.int64)
-    for t in range(mdp.horizon, 0, -1):  # backtrack the parent pointers
-        states[t] = node_history[t][best]
-        best = int(parents[t - 1][best])
-    states[0] = mdp.start_state
-    return states
-
-
-def _plan_trajectory(
-    mdp: GridMDP, q_cells: np.ndarray, *, solver: str | None, time_limit: float | None
-) -> tuple[np.ndarray, float, str]:
-    """Best path for ``min_i sum_t q_i(s_t)``; returns ``(cells (T+1, 2), upper bound, solver)``.
-
-    Raises:
-        _OutOfTime: the time limit passed first (carries the best path and bound so far).
-    """
-    deadline = math.inf if time_limit is None else time.monotonic() + time_limit
-    q_all = q_cells.reshape(len(q_cells), -1)
-    dist = _start_distance(mdp)
-    reach = np.flatnonzero(dist <= mdp.horizon)
-    q = q_all[_reduce_samples(q_all[:, reach])]
-    slack = _CERTIFY_RTOL * (mdp.horizon + 1) * float(np.abs(q[:, reach]).max())
-    own_best = _best_returns(mdp, q)
-    seeds = [_path_states(mdp, q.min(axis=0)), _path_states(mdp, q[int(np.argmin(own_best))])]
-    relaxation = _lp_relaxation(mdp, q, seeds, tol=slack)
-    upper = min(relaxation.bound, float(own_best.min()))
-    values = [_trajectory_value(q, p) for p in relaxation.paths]
-    best, incumbent = relaxation.paths[int(np.argmax(values))], max(values)
-    used = "milp-highs" if solver == "milp-highs" else "label-bb"
-    try:
-        if used == "label-bb":
-            if incumbent >= upper - slack:  # the LP relaxation is tight: no branching needed
-                return _cells_of(mdp, best), upper, used
-            for width in _BEAM_WIDTHS:  # cheap heuristics first: a better incumbent prunes more
-                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline, beam=width)
-                if found is not None:
-                    best, incumbent = found, _trajectory_value(q, found)
-            try:
-                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline)
-            except _BudgetExceeded as exc:
-                if solver == "label-bb":
-                    raise RuntimeError(f"trajectory label search over budget ({exc}); "
-                                       "use solver='milp-highs'") from exc
-                used = "milp-highs"  # automatic choice: fall back on the MILP
-            else:
-                if found is not None and _trajectory_value(q, found) > incumbent:
-                    best, incumbent = found, _trajectory_value(q, found)
-                return _cells_of(mdp, best), incumbent, used
-        multipliers = np.concatenate([relaxation.multipliers, np.eye(len(q))])
-        model = _build_trajectory_milp(mdp, q, _promising_nodes(mdp, q, multipliers, incumbent, slack, best))
-        cells, dual_bound = _solve_trajectory_milp(mdp, model, deadline)
-    except _OutOfTime as exc:
-        found = exc.states
-        if found is not None and _trajectory_value(q, found) > incumbent:
-            best, incumbent = found, _trajectory_value(q, found)
-        raise _OutOfTime(best, max(incumbent, min(upper, exc.bound)), used) from None
-    found = cells[:, 0] * mdp.width + cells[:, 1]
-    if _trajectory_value(q, found) > incumbent:  # else keep the incumbent (HiGHS tolerance)
-        best, incumbent = found, _trajectory_value(q, found)
-    return _cells_of(mdp, best), max(incumbent, min(upper, dual_bound)), used
-
-
-def _cells_of(mdp: GridMDP, states: np.ndarray) -> np.ndarray:
-    return validate_path(mdp, np.stack(np.divmod(np.asarray(states), mdp.width), axis=1))
-
-
-def _promising_nodes(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                     slack: float, incumbent_states: np.ndarray) -> np.ndarray:
-    """``(T + 1, S)`` mask of the time-expanded nodes a path beating the incumbent may use.
-
-    A node ``(t, s)`` is dropped when, for some simplex row ``lam``, the best ``lam``-weighted
-    path through it (forward DP + backward DP) is no better than ``incumbent + slack``; nodes
-    unreachable from the start by time ``t`` are dropped too. The incumbent's own nodes are
-    always kept, so the MILP stays feasible.
-    """
-    rewards = multipliers @ q
-    through = _come_from(mdp, rewards) + _to_go(mdp, rewards)  # (T+1, m, S)
-    keep = through.min(axis=1) > incumbent + slack
-    keep[np.arange(mdp.horizon + 1), incumbent_states] = True
-    return keep
-
-
-def _time_expanded_edges(mdp: GridMDP, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Edges ``(t, s) -> (t + 1, s')`` between kept nodes.
-
-    Args:
-        nodes: ``(T + 1, S)`` boolean mask of kept (time, state) pairs.
-    Returns:
-        ``(E,)`` arrays ``time``, ``source`` state, ``target`` state.
-    """
-    table = successor_table(mdp.height, mdp.width)
-    times, sources = np.nonzero(nodes[:-1])
-    node, move = np.nonzero(table[sources] >= 0)
-    times, sources, targets = times[node], sources[node], table[sources[node], move]
-    alive = nodes[times + 1, targets]
-    return times[alive], sources[alive], targets[alive]
-
-
-@dataclass(frozen=True)
-class _TrajectoryMilp:
-    """``max_xi min_i sum_t q_i(s_t)`` as a MILP over unit flows in the time-expanded graph.
-
-    Variables, in order: ``x`` (E binaries, one per edge ``(t, s) -> (t + 1, s')``), ``n`` (C
-    visit counts over ``t = 1..T`` of the cells edges enter), ``z`` (the objective, normalised).
-    Rows: unit flow out of the start; conservation at each kept inner ``(t, s)``,
-    ``1 <= t <= T - 1``; ``n[c] - sum of edges into c = 0``; ``z - sum_c q_i(c) n[c] <= q_i(s_0)``
-    per sample.
-    """
-
-    cost: np.ndarray          # (V,)
-    integrality: np.ndarray   # (V,)
-    bounds: Bounds
-    constraints: LinearConstraint
-    edge_time: np.ndarray     # (E,)
-    edge_source: np.ndarray   # (E,)
-    edge_target: np.ndarray   # (E,)
-    scale: float              # objective units per normalised unit
-
-    @property
-    def num_edges(self) -> int:
-        return len(self.edge_time)
-
-
-def _build_trajectory_milp(mdp: GridMDP, q: np.ndarray, nodes: np.ndarray) -> _TrajectoryMilp:
-    """Assemble the sparse MILP, vectorised over edges, nodes and samples.
-
-    Args:
-        q: ``(K, S)`` shifted rewards of the kept samples.
-        nodes: ``(T + 1, S)`` mask of kept (time, state) pairs; must contain a path from the start.
-    """
-    horizon, start = mdp.horizon, mdp.start_state
-    e_time, e_src, e_dst = _time_expanded_edges(mdp, nodes)
-    num_edges = len(e_time)
-    edge_ids = np.arange(num_edges)
-    cells = np.unique(e_dst)
-    num_cells = len(cells)
-    cell_col = np.full(mdp.num_states, -1)
-    cell_col[cells] = np.arange(num_cells)
-    num_vars = num_edges + num_cells + 1
-    # Normalise rewards to magnitude <= 1 so HiGHS's absolute tolerances act as relative ones.
-    used = np.union1d(cells, [start])
-    scale = float(np.abs(q[:, used]).max()) or 1.0
-    qs = q / scale
-
-    node_row = np.full((horizon + 1, mdp.num_states), -1)
-    inner = np.zeros_like(nodes)
-    inner[1:horizon] = nodes[1:horizon]
-    num_inner = int(inner.sum())
-    node_row[inner] = np.arange(num_inner)
-    into, out_of = node_row[e_time + 1, e_dst], node_row[e_time, e_src]
-    has_in, has_out = into >= 0, out_of >= 0
-    conservation = sp.csr_matrix(
-        (np.concatenate([np.ones(has_in.sum()), -np.ones(has_out.sum())]),
-         (np.concatenate([into[has_in], out_of[has_out]]),
-          np.concatenate([edge_ids[has_in], edge_ids[has_out]]))),
-        shape=(num_inner, num_vars))
-    first = edge_ids[e_time == 0]
-    source = sp.csr_matrix((np.ones(len(first)), (np.zeros(len(first), dtype=np.int64), first)),
-                           shape=(1, num_vars))
-    counts = sp.csr_matrix(
-        (np.concatenate([np.ones(num_cells), -np.ones(num_edges)]),
-         (np.concatenate([np.arange(num_cells), cell_col[e_dst]]),
-          np.concatenate([num_edges + np.arange(num_cells), edge_ids]))),
-        shape=(num_cells, num_vars))
-    k = len(qs)
-    samples = sp.hstack([sp.csr_matrix((k, num_edges)), sp.csr_matrix(-qs[:, cells]),
-                         sp.csr_matrix(np.ones((k, 1)))], format="csr")
-    matrix = sp.vstack([source, conservation, counts, samples], format="csr")
-    row_lb = np.concatenate([[1.0], np.zeros(num_inner + num_cells), np.full(k, -np.inf)])
-    row_ub = np.concatenate([[1.0], np.zeros(num_inner + num_cells), qs[:, start]])
-
-    cost = np.zeros(num_vars)
-    cost[-1] = -1.0  # milp minimises
-    var_lb = np.concatenate([np.zeros(num_edges + num_cells), [-np.inf]])
-    var_ub = np.concatenate([np.ones(num_edges), np.full(num_cells, float(horizon)), [np.inf]])
-    integrality = np.concatenate([np.ones(num_edges), np.zeros(num_cells + 1)])
-    return _TrajectoryMilp(cost, integrality, Bounds(var_lb, var_ub), LinearConstraint(matrix, row_lb, row_ub),
-                           e_time, e_src, e_dst, scale)
-
-
-def _run_highs(model: _TrajectoryMilp, options: dict) -> "object":
-    with warnings.catch_warnings():  # scipy warns that these HiGHS options are passed verbatim
-        warnings.filterwarnings("ignore", message="Unrecognized options", category=RuntimeWarning)
-        return milp(model.cost, integrality=model.integrality, bounds=model.bounds,
-                    constraints=model.constraints, options=options)
-
-
-def _solve_trajectory_milp(mdp: GridMDP, model: _TrajectoryMilp, deadline: float) -> tuple[np.ndarray, float]:
-    """Solve the model with HiGHS; returns the path's ``(T + 1, 2)`` cells and the dual bound
-    (an upper bound on the objective, in objective units).
-
-    The model always contains a feasible path, so an "infeasible" answer is a HiGHS presolve
-    error (HiGHS 1.12 makes it on some of these models): solve again without presolve.
-
-    Raises:
-        _OutOfTime: HiGHS hit the time left before ``deadline``.
-        RuntimeError: any other non-optimal HiGHS status.
-    """
-    options = dict(_HIGHS_OPTIONS)
-    res = _run_highs(model, _with_time_left(options, deadline))
-    if res.status == 2:
-        res = _run_highs(model, _with_time_left(dict(options, presolve=False), deadline))
-    dual = res.mip_dual_bound if res.mip_dual_bound is not None else res.fun
-    bound = math.inf if dual is None or not np.isfinite(dual) else -float(dual) * model.scale
-    if res.status == 1:
-        states = None
-        if res.x is not None:
-            chosen = res.x[: model.num_edges] > 0.5
-            cells = _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target)
-            states = cells[:, 0] * mdp.width + cells[:, 1]
-        raise _OutOfTime(states, bound)
-    if res.status != 0 or res.x is None:
-        raise RuntimeError(f"trajectory MILP not solved to optimality: status {res.status}: {res.message}")
-    chosen = res.x[: model.num_edges] > 0.5
-    return _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target), bound
-
-
-def _with_time_left(options: dict, deadline: float) -> dict:
-    """HiGHS options with ``time_limit`` set to the time left before ``deadline``."""
-    if math.isinf(deadline):
-        return options
-    left = deadline - time.monotonic()
-    if left <= 0:
-        raise _OutOfTime(None)
-    return dict(options, time_limit=left)
-
-
-def _path_from_edges(
-    mdp: GridMDP, chosen: np.ndarray, e_time: np.ndarray, e_src: np.ndarray, e_dst: np.ndarray
-) -> np.ndarray:
-    """Read the path off the chosen edges (exactly one per time step, chained from the start)."""
-    t, src, dst = e_time[chosen], e_src[chosen], e_dst[chosen]
-    order = np.argsort(t, kind="stable")
-    t, src, dst = t[order], src[order], dst[order]
-    if not (np.array_equal(t, np.arange(mdp.horizon)) and src[0] == mdp.start_state
-            and np.array_equal(src[1:], dst[:-1])):
-        raise RuntimeError("trajectory MILP: the chosen edges do not form one path from the start")
-    return _cells_of(mdp, np.concatenate([[mdp.start_state], dst]))
 
 
 # --------------------------------------------------------------------------- risk map

@@ -2,7 +2,9 @@
 
 Row 0 is drawn at the bottom (``origin="lower"``), like ``nav_msgs/OccupancyGrid``: x is the
 column, y the row. Colours follow the paper's figures: target yellow, dirt brown, grass green,
-lava red (:data:`TERRAIN_COLORS`, indexed by :class:`ird_core.terrain.Terrain`).
+lava red; gold (pot_of_gold only) is orange, apart from the target's yellow
+(:data:`TERRAIN_COLORS`, indexed by :class:`ird_core.terrain.Terrain`). The legend lists the
+terrains present on the map.
 
 Figures are built on ``matplotlib.figure.Figure`` with an explicit Agg canvas, never
 ``pyplot``, so rendering touches no global state and works in threads and headless nodes.
@@ -37,8 +39,8 @@ __all__ = [
     "save_mission_figure",
 ]
 
-#: RGB hex per Terrain: dirt brown, grass green, target yellow, lava red.
-TERRAIN_COLORS: tuple[str, ...] = ("#8b5a2b", "#3c9a3c", "#ffd400", "#e0201b")
+#: RGB hex per Terrain: dirt brown, grass green, target yellow, lava red, gold orange.
+TERRAIN_COLORS: tuple[str, ...] = ("#8b5a2b", "#3c9a3c", "#ffd400", "#e0201b", "#ff8c00")
 DPI: int = 100
 PANEL_SIZE_INCHES: float = 4.0
 TITLE_HEIGHT_INCHES: float = 0.5

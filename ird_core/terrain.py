@@ -52,6 +52,14 @@ Targets: ``num_targets`` cells drawn uniformly without replacement among the non
 overwriting their dirt or grass label. The start is chosen afterwards by :func:`choose_start`,
 at a Manhattan distance from the nearest target of at least ``(H + W) // 4`` (7 on a 15x15 map)
 so that every path has to cross terrain, and at most a caller-given bound (the horizon).
+
+Gold (the pot-of-gold condition only) is not part of the map distribution: :func:`place_gold`
+puts it on a finished map, after the start is chosen, on uniformly drawn dirt or grass cells
+other than the start (``round(share * H * W)`` of them, at least one), from its own random
+stream. Why not an MCMC terrain: the MCMC would grow gold into pools like lava, and a new
+label in the chain would change every existing map of a seed; placed afterwards, a
+pot-of-gold test map equals the other conditions' test map of the same seed (same lava, same
+target, same start) except for the gold cells, so the conditions stay paired by seed.
 """
 
 from __future__ import annotations
@@ -71,6 +79,7 @@ __all__ = [
     "TEST_MAP",
     "sample_terrain",
     "choose_start",
+    "place_gold",
     "terrain_fractions",
     "neighbour_agreement",
     "independent_agreement",
@@ -85,10 +94,11 @@ class Terrain(IntEnum):
     GRASS = 1
     TARGET = 2
     LAVA = 3
+    GOLD = 4
 
 
-TERRAIN_NAMES: tuple[str, ...] = ("dirt", "grass", "target", "lava")
-NUM_TERRAINS: int = 4
+TERRAIN_NAMES: tuple[str, ...] = ("dirt", "grass", "target", "lava", "gold")
+NUM_TERRAINS: int = len(TERRAIN_NAMES)
 # The terrains the designer saw in training (classifier classes, sensor channels).
 SAFE_TERRAINS: tuple[Terrain, ...] = (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET)
 
@@ -149,7 +159,8 @@ class MapConfig:
 
     @property
     def ratios(self) -> np.ndarray:
-        """(4,) target shares indexed by :class:`Terrain` (target share 0: placed afterwards)."""
+        """(NUM_TERRAINS,) target shares indexed by :class:`Terrain` (targets and gold: 0, placed
+        afterwards)."""
         out = np.zeros(NUM_TERRAINS)
         out[Terrain.DIRT], out[Terrain.GRASS], out[Terrain.LAVA] = self.dirt, self.grass, self.lava
         return out
@@ -281,9 +292,9 @@ def choose_start(
     min_distance: int | None = None,
     max_distance: int | None = None,
 ) -> tuple[int, int]:
-    """Choose a start cell: not lava, not a target, at some distance from the targets.
+    """Choose a start cell: not lava, gold or a target, at some distance from the targets.
 
-    Uniform among the non-lava, non-target cells whose Manhattan distance to the nearest target
+    Uniform among the non-lava, non-gold, non-target cells whose Manhattan distance to the nearest target
     lies in ``[min_distance, max_distance]``. If no cell qualifies, ``min_distance`` is relaxed
     (the farthest qualifying distance not above ``max_distance`` is used instead).
 
@@ -315,7 +326,10 @@ def choose_start(
     distance = np.min(
         np.abs(rows[..., None] - target_rows) + np.abs(cols[..., None] - target_cols), axis=-1
     )
-    usable = (labels != Terrain.LAVA) & (labels != Terrain.TARGET) & (distance <= max_distance)
+    usable = (
+        (labels != Terrain.LAVA) & (labels != Terrain.TARGET) & (labels != Terrain.GOLD)
+        & (distance <= max_distance)
+    )
     if not usable.any():
         raise ValueError(
             f"no non-lava, non-target cell within max_distance={max_distance} of a target"
@@ -328,8 +342,45 @@ def choose_start(
     return (cell // width, cell % width)
 
 
+def place_gold(
+    labels: np.ndarray,
+    share: float,
+    seed: int | np.random.Generator,
+    exclude: tuple[int, int] | None = None,
+) -> np.ndarray:
+    """Turn ``max(1, round(share * H * W))`` dirt or grass cells into gold (see the module docstring).
+
+    Args:
+        labels: (H, W) Terrain labels.
+        share: gold share of all cells, in (0, 1).
+        seed: int seed or numpy Generator.
+        exclude: a cell that must stay as it is (the start).
+
+    Returns:
+        A new (H, W) int8 label array; ``labels`` is not modified.
+    """
+    labels = _check_labels(labels)
+    if not np.isfinite(share) or not 0.0 < share < 1.0:
+        raise ValueError(f"share must be in (0, 1), got {share!r}")
+    rng = as_generator(seed)
+    height, width = labels.shape
+    count = max(1, int(round(share * labels.size)))
+    eligible = (labels == Terrain.DIRT) | (labels == Terrain.GRASS)
+    if exclude is not None:
+        row, col = exclude
+        if not (0 <= row < height and 0 <= col < width):
+            raise ValueError(f"exclude {exclude} is off the {height}x{width} map")
+        eligible[row, col] = False
+    free = np.flatnonzero(eligible)
+    if free.size < count:
+        raise ValueError(f"share={share}: {count} gold cells requested, only {free.size} dirt/grass cells")
+    out = labels.astype(np.int8, copy=True)
+    np.put(out, rng.choice(free, size=count, replace=False), Terrain.GOLD)
+    return out
+
+
 def terrain_fractions(labels: np.ndarray) -> np.ndarray:
-    """(4,) share of each :class:`Terrain` among all cells."""
+    """(NUM_TERRAINS,) share of each :class:`Terrain` among all cells."""
     labels = _check_labels(labels)
     return np.bincount(labels.ravel().astype(np.int64), minlength=NUM_TERRAINS) / labels.size
 

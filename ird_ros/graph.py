@@ -4,7 +4,7 @@ For the launcher (start order, readiness) and for documentation. Data only: no R
 
 Readiness of a node (what a launcher waits for before it calls the node "up"):
 
-- every service in ``ready_services`` is discovered (``client.service_is_ready()``), and
+- every service in ``services`` is discovered (``client.service_is_ready()``), and
 - a message was received on every topic in ``ready_topics`` (they are transient local, so a
   subscriber with ``names.latched_qos()`` gets the latest one whenever it joins), and
 - if both are empty, the node's name is in the graph (``get_node_names_and_namespaces``).
@@ -29,10 +29,12 @@ from dataclasses import dataclass
 
 from ird_ros import names
 
-__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "PARAMS_FILE"]
+__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "PARAMS_FILE"]
 
 PARAMS_FILE = "msgs_config/params/graph.yaml"
-"""The one parameter file of the graph, relative to the repository root."""
+"""The one parameter file of the graph, relative to the repository root. The parameters' defaults
+live in each node module's ``PARAMETERS`` table (``ird_ros.node_params``); the file repeats them
+for whoever edits it, and ``tests/test_graph_params.py`` keeps the two in step."""
 
 
 @dataclass(frozen=True)
@@ -45,9 +47,10 @@ class NodeSpec:
         publishes: topics the node publishes (see ``names.TOPIC_TYPES`` / ``names.TOPIC_QOS``).
         subscribes: topics it reads.
         services: services it serves.
-        ready_services: services that must be discovered for the node to count as ready.
         ready_topics: latched topics on which a message must have arrived.
         after: nodes whose output this node needs to become ready.
+        default: started when no node list is given (``GraphLauncher(nodes=None)``,
+            ``scripts/launch_graph.py`` without ``--nodes``); the designer is off by default.
     """
 
     name: str
@@ -55,9 +58,9 @@ class NodeSpec:
     publishes: tuple[str, ...]
     subscribes: tuple[str, ...]
     services: tuple[str, ...]
-    ready_services: tuple[str, ...]
     ready_topics: tuple[str, ...]
     after: tuple[str, ...] = ()
+    default: bool = True
 
 
 NODES: tuple[NodeSpec, ...] = (
@@ -70,10 +73,10 @@ NODES: tuple[NodeSpec, ...] = (
             names.TOPIC_TRAIN_PROXY_FEATURES,
             names.TOPIC_TERRAIN,
             names.TOPIC_PROXY,
+            names.TOPIC_INFER_REQUEST,
         ),
         subscribes=(),
         services=(names.SRV_GENERATE,),
-        ready_services=(names.SRV_GENERATE,),
         ready_topics=(names.TOPIC_PROXY,),
     ),
     NodeSpec(
@@ -82,17 +85,15 @@ NODES: tuple[NodeSpec, ...] = (
         publishes=(names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TERRAIN_FEATURES),
         subscribes=(names.TOPIC_TEST_FEATURES, names.TOPIC_PROXY),
         services=(),
-        ready_services=(),
         ready_topics=(names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TERRAIN_FEATURES),
         after=(names.NODE_WORLD,),
     ),
     NodeSpec(
         name=names.NODE_INFERENCE,
         module="ird_ros.inference",
-        publishes=(names.TOPIC_POSTERIOR,),
-        subscribes=(),
-        services=(names.SRV_INFER,),
-        ready_services=(names.SRV_INFER,),
+        publishes=(names.TOPIC_POSTERIOR, names.TOPIC_QUERIES),
+        subscribes=(names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES, names.TOPIC_PROXY),
+        services=(names.SRV_INFER, names.SRV_QUERY, names.SRV_ANSWER),
         ready_topics=(),
     ),
     NodeSpec(
@@ -108,7 +109,6 @@ NODES: tuple[NodeSpec, ...] = (
             names.TOPIC_POSTERIOR,
         ),
         services=(names.SRV_PLAN,),
-        ready_services=(names.SRV_PLAN,),
         ready_topics=(),
     ),
     NodeSpec(
@@ -117,9 +117,22 @@ NODES: tuple[NodeSpec, ...] = (
         publishes=(names.TOPIC_ODOM, names.TOPIC_ROB_STATUS),
         subscribes=(names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_TERRAIN, names.TOPIC_PROXY),
         services=(),
-        ready_services=(),
         ready_topics=(),
+    ),
+    NodeSpec(
+        # Answers the robot's questions (/ird/queries -> /ird/answer): simulated, or a person on a
+        # web page; a calling client (the demo) starts it with --nodes or nodes=[...].
+        name=names.NODE_DESIGNER,
+        module="ird_ros.designer",
+        publishes=(),
+        subscribes=(names.TOPIC_QUERIES, names.TOPIC_TERRAIN, names.TOPIC_PROXY, names.TOPIC_POSTERIOR,
+                    names.TOPIC_RISK_MAP),
+        services=(),
+        ready_topics=(),
+        default=False,
     ),
 )
 
 NODES_BY_NAME: dict[str, NodeSpec] = {spec.name: spec for spec in NODES}
+DEFAULT_NODES: tuple[str, ...] = tuple(spec.name for spec in NODES if spec.default)
+"""The nodes started when no node list is given."""

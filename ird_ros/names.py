@@ -10,6 +10,9 @@ QoS:
   records the current plan). Subscribers must use the same profile to get the history.
 - ``stream_qos()``: reliable, volatile, keep last 10. ``/odom`` and ``/rob/status``: a stream
   of samples; what was published before a subscriber matched is gone (wait for the match).
+- ``history_qos()``: reliable, transient local, keep last :data:`HISTORY_DEPTH` (100).
+  ``/ird/queries``: every proposal and answer of the conversation with the designer, so a late
+  joiner (the recorder, a respawned designer) gets the recent rounds, not only the last event.
 
 The ROS-free part (the strings) imports nothing; the profiles import ``rclpy.qos`` when called.
 """
@@ -25,11 +28,13 @@ __all__ = [
     "NODE_INFERENCE",
     "NODE_PLANNER",
     "NODE_ROB",
+    "NODE_DESIGNER",
     "TOPIC_TRAIN_FEATURES",
     "TOPIC_TEST_FEATURES",
     "TOPIC_TRAIN_PROXY_FEATURES",
     "TOPIC_TERRAIN",
     "TOPIC_PROXY",
+    "TOPIC_INFER_REQUEST",
     "TOPIC_TERRAIN_CLASSES",
     "TOPIC_TERRAIN_FEATURES",
     "TOPIC_POSTERIOR",
@@ -38,16 +43,22 @@ __all__ = [
     "TOPIC_PLAN_INFO",
     "TOPIC_ODOM",
     "TOPIC_ROB_STATUS",
+    "TOPIC_QUERIES",
     "SRV_GENERATE",
     "SRV_INFER",
+    "SRV_QUERY",
+    "SRV_ANSWER",
     "SRV_PLAN",
     "LATCHED",
     "STREAM",
+    "HISTORY",
+    "HISTORY_DEPTH",
     "TOPIC_TYPES",
     "TOPIC_QOS",
     "SERVICE_TYPES",
     "latched_qos",
     "stream_qos",
+    "history_qos",
     "qos_for",
 ]
 
@@ -58,6 +69,7 @@ NODE_PERCEPTION = "perception"
 NODE_INFERENCE = "inference"
 NODE_PLANNER = "planner"
 NODE_ROB = "rob"
+NODE_DESIGNER = "designer"
 
 # world
 TOPIC_TRAIN_FEATURES = "/world/train_features"
@@ -65,6 +77,8 @@ TOPIC_TEST_FEATURES = "/world/test_features"
 TOPIC_TRAIN_PROXY_FEATURES = "/world/train_proxy_features"
 TOPIC_TERRAIN = "/world/terrain"
 TOPIC_PROXY = "/world/proxy"
+# The whole /ird/infer request the world poses (every training world; see ird_ros.world)
+TOPIC_INFER_REQUEST = "/world/infer_request"
 SRV_GENERATE = "/world/generate"
 # perception
 TOPIC_TERRAIN_CLASSES = "/terrain/classes"
@@ -72,6 +86,9 @@ TOPIC_TERRAIN_FEATURES = "/terrain/features"
 # inference
 TOPIC_POSTERIOR = "/ird/posterior"
 SRV_INFER = "/ird/infer"
+TOPIC_QUERIES = "/ird/queries"
+SRV_QUERY = "/ird/query"
+SRV_ANSWER = "/ird/answer"
 # planner
 TOPIC_RISK_MAP = "/ird/risk_map"
 TOPIC_PLAN = "/plan"
@@ -83,6 +100,8 @@ TOPIC_ROB_STATUS = "/rob/status"
 
 LATCHED = "latched"
 STREAM = "stream"
+HISTORY = "history"
+HISTORY_DEPTH = 100
 
 TOPIC_TYPES: dict[str, str] = {
     TOPIC_TRAIN_FEATURES: "ird_msgs/msg/FeatureGrid",
@@ -90,6 +109,7 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_TRAIN_PROXY_FEATURES: "ird_msgs/msg/FeatureGrid",
     TOPIC_TERRAIN: "ird_msgs/msg/TerrainGrid",
     TOPIC_PROXY: "ird_msgs/msg/ProxyReward",
+    TOPIC_INFER_REQUEST: "ird_msgs/srv/InferReward_Request",
     TOPIC_TERRAIN_CLASSES: "ird_msgs/msg/TerrainGrid",
     TOPIC_TERRAIN_FEATURES: "ird_msgs/msg/FeatureGrid",
     TOPIC_POSTERIOR: "ird_msgs/msg/RewardPosterior",
@@ -98,18 +118,22 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_PLAN_INFO: "ird_msgs/msg/PlanInfo",
     TOPIC_ODOM: "nav_msgs/msg/Odometry",
     TOPIC_ROB_STATUS: "ird_msgs/msg/RobStatus",
+    TOPIC_QUERIES: "ird_msgs/msg/QueryRecord",
 }
 """Message type of every topic of the graph (``package/msg/Name``)."""
 
 TOPIC_QOS: dict[str, str] = {
-    topic: (STREAM if topic in (TOPIC_ODOM, TOPIC_ROB_STATUS) else LATCHED) for topic in TOPIC_TYPES
+    topic: (STREAM if topic in (TOPIC_ODOM, TOPIC_ROB_STATUS) else HISTORY if topic == TOPIC_QUERIES else LATCHED)
+    for topic in TOPIC_TYPES
 }
-"""QoS kind of every topic: :data:`LATCHED` or :data:`STREAM`."""
+"""QoS kind of every topic: :data:`LATCHED`, :data:`STREAM` or :data:`HISTORY`."""
 
 SERVICE_TYPES: dict[str, str] = {
     SRV_GENERATE: "ird_msgs/srv/GenerateWorld",
     SRV_INFER: "ird_msgs/srv/InferReward",
     SRV_PLAN: "ird_msgs/srv/PlanPath",
+    SRV_QUERY: "ird_msgs/srv/ProposeQuery",
+    SRV_ANSWER: "ird_msgs/srv/AnswerQuery",
 }
 
 
@@ -137,6 +161,19 @@ def stream_qos(depth: int = 10) -> Any:
     )
 
 
+def history_qos(depth: int = HISTORY_DEPTH) -> Any:
+    """Reliable, transient local, keep last ``depth`` (/ird/queries: the rounds so far)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
 def qos_for(topic: str) -> Any:
     """The QoS profile of a topic of the graph (``KeyError`` for an unknown topic)."""
-    return latched_qos() if TOPIC_QOS[topic] == LATCHED else stream_qos()
+    kind = TOPIC_QOS[topic]
+    return latched_qos() if kind == LATCHED else history_qos() if kind == HISTORY else stream_qos()

@@ -28,13 +28,14 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
-import ctypes
 import multiprocessing
 import os
 import signal
 import sys
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
+
+from ird_ros.supervisor import set_parent_death_signal
 
 __all__ = ["StartupError", "run_node", "declare", "WorkerPool", "BrokenProcessPool"]
 
@@ -100,7 +101,6 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
     rclpy.init(args=list(sys.argv if args is None else args))
     node = None
     executor = None
-    code = 0
     try:
         executor = SingleThreadedExecutor()
         try:
@@ -128,7 +128,7 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
                 node.destroy_node()
         with contextlib.suppress(Exception):
             rclpy.try_shutdown()
-    return code
+    return 0
 
 
 def exit_process(code: int) -> None:
@@ -146,12 +146,17 @@ def exit_process(code: int) -> None:
 # --------------------------------------------------------------------------- worker processes
 
 
-def _worker_init() -> None:  # pragma: no cover - runs in the worker process
+def _worker_init(memory_limit: int = 0) -> None:  # pragma: no cover - runs in the worker process
     # Ctrl-C in a terminal signals the whole process group: the node ends its workers itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if memory_limit > 0:
+        # An allocation past the limit raises MemoryError in the job (answered as a failure);
+        # the node and the other workers keep their memory.
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (memory_limit, memory_limit))
     # Die with the node, even if it is SIGKILLed (Linux PR_SET_PDEATHSIG).
-    with contextlib.suppress(Exception):
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))
+    set_parent_death_signal(signal.SIGTERM)
 
 
 def _warm(modules: Sequence[str]) -> int:  # pragma: no cover - runs in the worker process
@@ -167,12 +172,16 @@ class WorkerPool:
 
     ``max_workers`` computations run at once; further submissions queue in FIFO order.
     ``warm_modules`` are imported in every worker at start-up (the constructor waits for it) so
-    the first request does not pay for the process start and the imports. A worker that dies (``BrokenProcessPool``) is replaced on the next submit.
+    the first request does not pay for the process start and the imports. A worker that dies
+    (``BrokenProcessPool``) is replaced on the next submit. ``memory_limit`` (bytes, 0 = none)
+    caps each worker's address space (``RLIMIT_AS``): a job that would exceed it gets
+    ``MemoryError``.
     """
 
-    def __init__(self, max_workers: int = 1, warm_modules: Sequence[str] = ()) -> None:
+    def __init__(self, max_workers: int = 1, warm_modules: Sequence[str] = (), memory_limit: int = 0) -> None:
         if max_workers < 1:
             raise ValueError(f"max_workers must be >= 1, got {max_workers}")
+        self._memory_limit = int(memory_limit)
         self._max_workers = int(max_workers)
         self._warm_modules = tuple(warm_modules)
         self._pool: concurrent.futures.ProcessPoolExecutor | None = None
@@ -184,6 +193,7 @@ class WorkerPool:
             max_workers=self._max_workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_worker_init,
+            initargs=(self._memory_limit,),
         )
         if self._warm_modules:
             # Start every worker now and wait until it has imported the modules, so the node is

@@ -14,7 +14,7 @@ that generation:
 
 What the classes are, per condition (perception reads only what the sensors say):
 
-- side_effects: the indicator layers are the classes (dirt, grass, target, lava); probabilities
+- side_effects, pot_of_gold: the indicator layers are the classes (dirt, grass, target, lava[, gold]); probabilities
   are the indicators; novelty 0 (the sensors name lava).
 - reward_hacking: classes dirt, grass, target from the two sensors. Where they agree the class
   is theirs; where they disagree (lava: grass to sensor 1, target to sensor 2) the class is
@@ -24,6 +24,15 @@ What the classes are, per condition (perception reads only what the sensors say)
   target; no lava class) applied to the 50-d observations: classes = ``predict``, probabilities =
   ``predict_proba``, novelty = ``novelty`` (chi2 surprise in nats). With the parameter
   ``unknown_novelty`` > 0, cells whose novelty exceeds it are marked unknown (255).
+- file (a world file, ``ird_core.world_file``): with the ``world_file`` parameter set to the
+  file the world node publishes, the file's own instance: its classifier if it has one
+  (``proxy_features: classifier``; then as latent_classifier, and ``/terrain/features`` = the
+  classifier's probabilities); Gaussian features without a classifier get the safe-terrain
+  classifier fitted on the file's observation model (seed ``instance.seed``), as latent_raw.
+  Perception checks that the received test map equals the file's (float32 tolerance) first.
+  Otherwise (indicator or vector features, or no ``world_file``) the layers are the classes,
+  as side_effects: ``classify_indicators``. Features outside [0, 1] without a matching
+  ``world_file`` are refused (an error naming ``world_file``; nothing published).
 
 Where the classifier comes from: it cannot travel over ROS, so perception rebuilds it from what
 ``/world/proxy`` says (condition, seed, horizon) and the map itself (size, and ``obs_dim`` = the
@@ -38,19 +47,29 @@ the graph does not carry: the training map's labels are the designer's secret.)
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 from rclpy.node import Node
 
-from ird_core import lavaland
+from ird_core import lavaland, world_file
+from ird_core.observations import fit_classifier
 from ird_core.terrain import SAFE_TERRAINS, TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import declare, run_node, exit_process
+from ird_ros.node_main import exit_process, run_node
+from ird_ros.node_params import Param, declare_all
 
-__all__ = ["PerceptionNode", "classify_indicators", "classify_sensors", "main"]
+__all__ = ["PerceptionNode", "PARAMETERS", "classify_indicators", "classify_sensors", "main"]
+
+PARAMETERS: dict[str, Param] = {
+    "unknown_novelty": Param(0.0, "Latent conditions: cells whose classifier novelty (nats) exceeds this are "
+                                  "marked unknown (255); 0 = never", min_value=0.0),
+    "world_file": Param("", "The world file the world node publishes (\"\" = none): file worlds with "
+                            "Gaussian features take their classifier from it", read_only=True),
+}
 
 _SAFE_NAMES = tuple(TERRAIN_NAMES[t] for t in SAFE_TERRAINS)
 
@@ -80,10 +99,10 @@ def classify_sensors(features: np.ndarray, num_sensors: int = 2) -> tuple[np.nda
 class PerceptionNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PERCEPTION, **kwargs)
-        self.unknown_novelty = declare(
-            self, "unknown_novelty", 0.0,
-            "Latent conditions: cells whose classifier novelty (nats) exceeds this are marked "
-            "unknown (255); 0 = never", min_value=0.0)
+        p = declare_all(self, PARAMETERS)
+        self.unknown_novelty = p["unknown_novelty"]
+        # A bad file stops the node at start-up, like the world node.
+        self._file_instance = world_file.load_world(p["world_file"]) if p["world_file"] else None
         qos = names.latched_qos()
         self._classes_pub = self.create_publisher(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, qos)
         self._features_pub = self.create_publisher(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, qos)
@@ -134,11 +153,38 @@ class PerceptionNode(Node):
             self._classifiers = {key: inst.classifier}  # keep one: worlds change rarely
         return self._classifiers[key]
 
+    def _file_classifier(self, grid: conv.FeatureGridData) -> Any:
+        """The classifier of the file world (None: classify the layers as indicators)."""
+        inst = self._file_instance
+        matches = (inst is not None and inst.feature_names == grid.layers
+                   and np.allclose(inst.test_features.astype(np.float32), grid.features, rtol=1e-5, atol=1e-5))
+        if not matches:
+            if not np.all((grid.features >= 0.0) & (grid.features <= 1.0)):
+                raise ValueError("world_file: the test map is not indicators and is not the test map of the "
+                                 "parameter's world file; set world_file to the file the world node publishes")
+            return None
+        assert inst is not None
+        if inst.classifier is None and inst.observation_model is not None:
+            inst = dataclasses.replace(
+                inst, classifier=fit_classifier(inst.observation_model, np.random.default_rng(inst.seed)))
+            self._file_instance = inst  # fit once
+        return inst.classifier
+
+    def _classify(self, clf: Any, grid: conv.FeatureGridData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The classifier's classes (unknown past ``unknown_novelty``), probabilities, novelty."""
+        obs = grid.features.astype(np.float64)
+        probs = clf.predict_proba(obs).astype(np.float32)
+        classes = clf.predict(obs).astype(np.uint8)
+        novelty = np.maximum(clf.novelty(obs), 0.0).astype(np.float32)
+        if self.unknown_novelty > 0:
+            classes[novelty > self.unknown_novelty] = conv.UNKNOWN_CLASS
+        return classes, probs, novelty
+
     def _process(self, test: FeatureGrid, proxy: ProxyReward) -> None:
         grid = conv.feature_grid_from_msg(test, field="/world/test_features")
         condition = proxy.condition
         feature_out: tuple[np.ndarray, tuple[str, ...]] = (grid.features, grid.layers)
-        if condition == "side_effects":
+        if condition in ("side_effects", "pot_of_gold"):  # indicator layers are the classes
             classes, probs, novelty = classify_indicators(grid.features)
             class_names = grid.layers
         elif condition == "reward_hacking":
@@ -146,16 +192,21 @@ class PerceptionNode(Node):
             class_names = _SAFE_NAMES
         elif condition in ("latent_raw", "latent_classifier"):
             clf = self._classifier(proxy, grid)
-            obs = grid.features.astype(np.float64)
-            probs = clf.predict_proba(obs).astype(np.float32)
-            classes = clf.predict(obs).astype(np.uint8)
-            novelty = np.maximum(clf.novelty(obs), 0.0).astype(np.float32)
-            if self.unknown_novelty > 0:
-                classes[novelty > self.unknown_novelty] = conv.UNKNOWN_CLASS
+            classes, probs, novelty = self._classify(clf, grid)
             class_names = _SAFE_NAMES
             if condition == "latent_classifier":
                 # The proxy's feature space: exactly lavaland's proxy_test_features.
-                feature_out = (clf.predict_proba(obs), tuple(proxy.feature_names))
+                feature_out = (clf.predict_proba(grid.features.astype(np.float64)), tuple(proxy.feature_names))
+        elif condition == lavaland.FILE_CONDITION:
+            clf = self._file_classifier(grid)
+            if clf is None:
+                classes, probs, novelty = classify_indicators(grid.features)
+                class_names = grid.layers
+            else:
+                classes, probs, novelty = self._classify(clf, grid)
+                class_names = _SAFE_NAMES
+                if tuple(proxy.feature_names) != grid.layers:  # the proxy is on the classifier's outputs
+                    feature_out = (clf.predict_proba(grid.features.astype(np.float64)), tuple(proxy.feature_names))
         else:
             raise ValueError(f"/world/proxy.condition: unknown condition {condition!r}")
         geometry = dict(resolution=grid.resolution, origin=grid.origin, stamp=test.header.stamp)

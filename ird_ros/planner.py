@@ -21,11 +21,19 @@ Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
   (``/world/train_proxy_features``, start and horizon from ``/world/proxy``), and its expected
   visits are contracted with the training map whose layers match the weights
   (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
-  proxy's own weights). This is ``ird_core.lavaland.proxy_feature_expectations / (T + 1)``.
+  proxy's own weights): ``ird_core.inference.proxy_feature_counts / (T + 1)``, as
+  ``ird_core.lavaland.proxy_feature_expectations / (T + 1)``.
 
-Every field is validated (``success: false``, the message starts with the field's name). The
-plan is ``ird_core.planning.plan_path(GridMDP(map, start, horizon), weights, mode, baseline,
-reference_features)``, computed in a worker process (the trajectory MILP can take seconds), and
+Every field is validated before the plan is queued (``success: false``, the message starts with
+the field's name): the map is decoded by ``ird_ros.conversions``, the arguments are checked by
+``ird_core.planning.check_plan_arguments``, ``check_start`` and ``GridMDP``; the node itself
+checks only its limits (``max_horizon``, ``max_map_values``; ``max_plan_work`` through ``planning.check_plan_size``,
+before any work starts) and which received inputs fit together. The plan is
+``ird_core.planning.plan_path(GridMDP(map, start, horizon), weights, mode, baseline,
+reference_features, time_limit=time_limit)``, computed in a worker process: trajectory plans
+in one of their own, so a long one never delays a ``literal`` or ``per_step`` plan. A
+trajectory plan that reaches ``time_limit`` is answered with the best path found, marked in the
+message as ``FALLBACK, not proven optimal`` with its objective and proven upper bound. It is
 published on ``/plan`` (nav_msgs/Path, poses at cell centres, stamp = now, frame ``map``) and
 ``/ird/plan_info`` (same stamp; label, mode, baseline, objective, cells), both latched.
 
@@ -43,56 +51,116 @@ map arrives. With ``replan_on_posterior`` true, every new posterior also trigger
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
-from ird_core import mdp as core_mdp
+from ird_core import inference as core_inference
 from ird_core import planning
+from ird_core.checks import MAX_ABS_FEATURE
+from ird_core.mdp import GridMDP
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from nav_msgs.msg import OccupancyGrid, Path
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import BrokenProcessPool, WorkerPool, declare, run_node, exit_process
+from ird_ros.node_main import exit_process, run_node
+from ird_ros.node_params import Param, declare_all
+from ird_ros.offload import Offload, OffloadError, service_qos
 
-__all__ = ["PlannerNode", "RequestError", "reference_features", "run_plan", "main"]
+__all__ = ["PlannerNode", "PlanJob", "PlanOutcome", "ReferenceJob", "PARAMETERS", "reference_features", "run_plan", "main"]
+
+PARAMETERS: dict[str, Param] = {
+    "replan_on_posterior": Param(False, "Plan (default_mode, default_baseline, proxy's test start/horizon) on "
+                                        "every new posterior"),
+    "default_mode": Param("per_step", "Mode of plans made on a new posterior", choices=planning.MODES),
+    "default_baseline": Param("training_features", "Baseline of plans made on a new posterior",
+                              choices=planning.BASELINES),
+    "risk_statistic": Param("std", "Spread statistic of the risk map", choices=planning.STATISTICS),
+    "time_limit": Param(10.0, "Seconds a trajectory plan may take (label search and MILP); past it the best "
+                              "path found is answered as a fallback", min_value=0.001),
+    "max_horizon": Param(1000, "Largest horizon a request may ask for", min_value=1),
+    "worker_memory_mb": Param(4096, "Address space of each planning worker process in MiB (0 = no limit); a plan "
+                                    "past it fails with MemoryError", min_value=0),
+    "max_map_values": Param(5_000_000, "Largest H*W*d of a request's map", min_value=1),
+    "max_plan_work": Param(50_000_000, "Largest samples x (horizon + 1) x cells of a plan (planning.plan_work)",
+                           min_value=1),
+    "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
+                         min_value=1),
+}
 
 
-class RequestError(ValueError):
-    """A bad request; the message starts with the field's name."""
+@dataclass(frozen=True)
+class ReferenceJob:
+    """The inputs of the default ``reference_features`` (see the module doc).
 
-
-def reference_features(
-    proxy_train_features: np.ndarray,
-    target_train_features: np.ndarray,
-    proxy_weights: np.ndarray,
-    start: tuple[int, int],
-    horizon: int,
-) -> np.ndarray:
-    """``f_ref``: the proxy's expected training counts of ``target_train_features`` / (T + 1).
-
-    The proxy (weights over ``proxy_train_features``' layers) is planned by the MaxEnt agent on
-    ``proxy_train_features`` from ``start`` for ``horizon`` moves.
+    Attributes:
+        proxy_mdp: the training map in the proxy's features ``(H, W, p)``, the proxy's training
+            start and horizon.
+        proxy_weights: ``(p,)``.
+        target_features: the training map in the features of the plan's weights, ``(H, W, d)``.
     """
-    proxy_mdp = core_mdp.GridMDP(proxy_train_features, start, horizon)
-    visits = core_mdp.expected_visitation(proxy_mdp, np.asarray(proxy_weights, dtype=np.float64)[None, :])
-    counts = np.einsum("khw,hwd->kd", visits, np.asarray(target_train_features, dtype=np.float64), optimize=True)[0]
-    return counts / (horizon + 1)
+
+    proxy_mdp: GridMDP
+    proxy_weights: np.ndarray
+    target_features: np.ndarray
 
 
-def run_plan(job: dict[str, Any]) -> tuple[planning.Plan, np.ndarray | None]:
-    """The worker-process job: the default reference features if asked for, then plan_path."""
-    reference = job["reference_features"]
-    if reference is None and job["reference_job"] is not None:
-        reference = reference_features(**job["reference_job"])
-    mdp = core_mdp.GridMDP(job["features"], job["start"], job["horizon"])
-    plan = planning.plan_path(mdp, job["weights"], job["mode"], job["baseline"], reference,
-                              time_limit=job["time_limit"])
-    return plan, reference
+@dataclass(frozen=True)
+class PlanJob:
+    """A validated request, as the worker process gets it: ``plan_path``'s arguments, with
+    ``reference_job`` standing in for ``reference_features`` when those are to be computed."""
+
+    mdp: GridMDP
+    weights: np.ndarray
+    mode: str
+    baseline: str
+    reference_features: np.ndarray | None
+    reference_job: ReferenceJob | None
+    time_limit: float | None
+
+
+@dataclass(frozen=True)
+class _Accepted:
+    """A validated request: the job and what the answer needs besides the plan."""
+
+    job: PlanJob
+    grid: conv.FeatureGridData
+    label: str
+    sources: tuple[str, ...]  # where defaulted inputs came from (reported in the message)
+
+
+def reference_features(job: ReferenceJob) -> np.ndarray:
+    """``f_ref`` (d,): the proxy's expected training counts of ``target_features`` / (T + 1)."""
+    counts = core_inference.proxy_feature_counts(job.proxy_mdp, job.proxy_weights, job.target_features)
+    return counts / (job.proxy_mdp.horizon + 1)
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What the worker returns: the plan, and why it is a fallback (``""`` if it is optimal)."""
+
+    plan: planning.Plan
+    fallback: str = ""
+
+
+def run_plan(job: PlanJob) -> PlanOutcome:
+    """The worker-process job: the default reference features if asked for, then plan_path.
+
+    A trajectory plan that runs out of ``time_limit`` answers with the best path found, its
+    exact objective and the proven upper bound (``PlanningTimeout.plan``), marked as a fallback.
+    """
+    reference = job.reference_features
+    if reference is None and job.reference_job is not None:
+        reference = reference_features(job.reference_job)
+    try:
+        return PlanOutcome(planning.plan_path(job.mdp, job.weights, job.mode, job.baseline, reference,
+                                              time_limit=job.time_limit))
+    except planning.PlanningTimeout as exc:
+        return PlanOutcome(exc.plan, f"FALLBACK, not proven optimal: {exc}")
 
 
 def _stamp(stamp: Any) -> str:
@@ -107,23 +175,18 @@ def _flat(values: Any) -> np.ndarray:
 class PlannerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PLANNER, **kwargs)
-        self.replan_on_posterior = declare(
-            self, "replan_on_posterior", False,
-            "Plan (default_mode, default_baseline, proxy's test start/horizon) on every new posterior")
-        self.default_mode = declare(self, "default_mode", "per_step", "Mode of plans made on a new posterior",
-                                    choices=planning.MODES)
-        self.default_baseline = declare(self, "default_baseline", "training_features",
-                                        "Baseline of plans made on a new posterior", choices=planning.BASELINES)
-        self.risk_statistic = declare(self, "risk_statistic", "std",
-                                      "Spread statistic of the risk map", choices=planning.STATISTICS)
-        self.milp_time_limit = declare(self, "milp_time_limit", 0.0,
-                                       "Seconds for the trajectory MILP (0 = no limit)", min_value=0.0)
-        self.max_horizon = declare(self, "max_horizon", 1000, "Largest horizon a request may ask for", min_value=1)
-        self.max_pending = declare(self, "max_pending", 16,
-                                   "Valid requests allowed to wait or run at once; more are refused as busy",
-                                   min_value=1)
-        self._pool = WorkerPool(1, warm_modules=("ird_core.planning",))
-        self._pending = 0
+        p = declare_all(self, PARAMETERS)
+        self.replan_on_posterior = p["replan_on_posterior"]
+        self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
+        self.risk_statistic = p["risk_statistic"]
+        self.time_limit, self.max_horizon = p["time_limit"], p["max_horizon"]
+        self.max_plan_work, self.max_map_values = p["max_plan_work"], p["max_map_values"]
+        # Trajectory plans (seconds, up to time_limit) get their own worker: a long one never
+        # delays a literal or per_step plan (milliseconds), which queue on the other.
+        pool = dict(warm_modules=("ird_core.planning", "ird_core.inference"),
+                    memory_limit=p["worker_memory_mb"] * 2**20, logger=self.get_logger())
+        self._offloads = {"dp": Offload("planning", p["max_pending"], **pool),
+                          "trajectory": Offload("planning", p["max_pending"], **pool)}
         latched = names.latched_qos()
         self._plan_pub = self.create_publisher(Path, names.TOPIC_PLAN, latched)
         self._info_pub = self.create_publisher(PlanInfo, names.TOPIC_PLAN_INFO, latched)
@@ -139,13 +202,14 @@ class PlannerNode(Node):
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
-        self.create_service(PlanPath, names.SRV_PLAN, self._on_plan,
+        self.create_service(PlanPath, names.SRV_PLAN, self._on_plan, qos_profile=service_qos(),
                             # Own reentrant group: a pending (awaiting) request must not hold the
                             # default group, which serves parameters (and subscriptions).
                             callback_group=ReentrantCallbackGroup())
 
     def destroy_node(self) -> None:
-        self._pool.shutdown()
+        for offload in self._offloads.values():
+            offload.shutdown()
         super().destroy_node()
 
     # ------------------------------------------------------------------ inputs
@@ -208,53 +272,49 @@ class PlannerNode(Node):
 
     # ------------------------------------------------------------------ validation
 
-    def validate(self, req: PlanPath.Request) -> dict[str, Any]:
-        """Check every field, fill in the defaults; return the worker job or raise RequestError."""
-        if req.mode not in planning.MODES:
-            raise RequestError(f"mode: must be one of {list(planning.MODES)}, got {req.mode!r}")
-        if req.baseline not in planning.BASELINES:
-            raise RequestError(f"baseline: must be one of {list(planning.BASELINES)}, got {req.baseline!r}")
-        if req.horizon == 0:
-            raise RequestError("horizon: must be > 0, got 0")
+    def validate(self, req: PlanPath.Request) -> _Accepted:
+        """Check every field and fill in the defaults.
+
+        Raises:
+            ValueError: naming the request field (from the decoders and the library's checks).
+        """
+        # Mode and baseline first: which inputs are defaulted depends on them.
+        planning.check_plan_arguments(req.mode, req.baseline)
         if req.horizon > self.max_horizon:
-            raise RequestError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
+            raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
         literal = req.mode == "literal"
         grid: conv.FeatureGridData | None = None
         if len(req.map.layers) or len(req.map.data):
-            try:
-                grid = conv.feature_grid_from_msg(req.map, field="map")
-            except ValueError as exc:
-                raise RequestError(str(exc)) from None
+            if len(req.map.data) > self.max_map_values:
+                raise ValueError(f"map.data: {len(req.map.data)} values exceed max_map_values={self.max_map_values}")
+            grid = conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
         flat = _flat(req.weights)
-        feature_names: tuple[str, ...] | None = None  # names of the weights, when known
-        sources: list[str] = []  # where defaulted inputs came from (reported in the message)
+        sources: list[str] = []
         if flat.size == 0:
             if literal:
                 if self.proxy is None:
-                    raise RequestError("weights: empty and no proxy received on /world/proxy yet")
+                    raise ValueError("weights: empty and no proxy received on /world/proxy yet")
                 weights = _flat(self.proxy.weights)[None, :]
                 feature_names = tuple(self.proxy.feature_names)
                 sources.append(f"weights={names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}")
             else:
                 if self.posterior is None:
-                    raise RequestError("weights: empty and no posterior received on /ird/posterior yet")
+                    raise ValueError("weights: empty and no posterior received on /ird/posterior yet")
                 weights = self.posterior.samples
                 feature_names = self.posterior.feature_names
                 sources.append(f"weights={names.TOPIC_POSTERIOR}@{self._stamps[names.TOPIC_POSTERIOR]}")
             if grid is None:
                 found = self.matching_map(feature_names)
                 if found is None:
-                    raise RequestError(f"map: empty and no perceived test map has the layers "
-                                       f"{list(feature_names)[:4]}{'...' if len(feature_names) > 4 else ''} "
-                                       "of the weights")
+                    raise ValueError(f"map: empty and no perceived test map has the layers "
+                                     f"{list(feature_names)[:4]}{'...' if len(feature_names) > 4 else ''} "
+                                     "of the weights")
                 grid = found[1]
                 sources.append(f"map={found[0]}@{self._stamps[found[0]]}")
             elif grid.layers != feature_names:
-                raise RequestError(f"map.layers: {list(grid.layers)[:4]}... do not match the weights' features "
-                                   f"{list(feature_names)[:4]}...")
+                raise ValueError(f"map.layers: {list(grid.layers)[:4]}... do not match the weights' features "
+                                 f"{list(feature_names)[:4]}...")
         else:
-            if not np.all(np.isfinite(flat)):
-                raise RequestError("weights: contains NaN or infinite values")
             if grid is None:
                 for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
                     candidate = self.maps.get(topic)
@@ -266,52 +326,34 @@ class PlannerNode(Node):
                         sources.append(f"map={topic}@{self._stamps[topic]}")
                         break
                 if grid is None:
-                    raise RequestError(f"map: empty and no perceived test map fits {flat.size} weight values")
+                    raise ValueError(f"map: empty and no perceived test map fits {flat.size} weight values")
             d = grid.shape[2]
             if flat.size % d:
-                raise RequestError(f"weights: {flat.size} values are not a multiple of d={d} (map.layers)")
+                raise ValueError(f"weights: {flat.size} values are not a multiple of d={d} (map.layers)")
             weights = flat.reshape(-1, d)
             feature_names = grid.layers
         h, w, d = grid.shape
-        if literal and weights.shape[0] != 1:
-            raise RequestError(f"weights: mode literal takes one weight vector (d={d} values), "
-                               f"got {weights.shape[0]}")
-        if req.start_row >= h:
-            raise RequestError(f"start_row: {req.start_row} is off the map (height {h})")
-        if req.start_col >= w:
-            raise RequestError(f"start_col: {req.start_col} is off the map (width {w})")
-        reference = None
-        reference_job = None
+        planning.check_plan_size(len(weights), int(req.horizon), h, w, self.max_plan_work)
+        start = planning.check_start((req.start_row, req.start_col), h, w)
+        mdp = GridMDP(grid.features.astype(np.float64), start, int(req.horizon))
         ref_flat = _flat(req.reference_features)
-        if ref_flat.size:
-            if ref_flat.size != d:
-                raise RequestError(f"reference_features: expected d={d} values, got {ref_flat.size}")
-            if not np.all(np.isfinite(ref_flat)):
-                raise RequestError("reference_features: contains NaN or infinite values")
-            reference = ref_flat
-        elif req.baseline == "training_features":
+        reference = ref_flat if ref_flat.size else None
+        time_limit = float(self.time_limit)
+        weights = planning.check_plan_arguments(req.mode, req.baseline, weights, d, reference, time_limit=time_limit)
+        reference_job = None
+        if reference is None and req.baseline == "training_features":
             reference_job, used = self._reference_job(feature_names)
             sources.append("reference_features=" + "+".join(used))
-        return dict(
-            features=grid.features.astype(np.float64),
-            grid=grid,
-            start=(int(req.start_row), int(req.start_col)),
-            horizon=int(req.horizon),
-            weights=weights,
-            mode=req.mode,
-            baseline=req.baseline,
-            reference_features=reference,
-            reference_job=reference_job,
-            time_limit=float(self.milp_time_limit) or None,
-            label=req.label or (req.mode if literal else f"ird_{req.mode}_{req.baseline}"),
-            sources=sources,
-        )
+        job = PlanJob(mdp=mdp, weights=weights, mode=req.mode, baseline=req.baseline, reference_features=reference,
+                      reference_job=reference_job, time_limit=time_limit)
+        label = req.label or (req.mode if literal else f"ird_{req.mode}_{req.baseline}")
+        return _Accepted(job=job, grid=grid, label=label, sources=tuple(sources))
 
-    def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[dict[str, Any], list[str]]:
-        """The arguments of :func:`reference_features` from the latest proxy and training maps,
-        and the ``topic@stamp`` of each input used."""
+    def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
+        """The default reference features' inputs from the latest proxy and training maps, and
+        the ``topic@stamp`` of each input used."""
         if self.proxy is None:
-            raise RequestError("reference_features: empty, and no proxy received on /world/proxy to compute them")
+            raise ValueError("reference_features: empty, and no proxy received on /world/proxy to compute them")
         proxy_names = tuple(self.proxy.feature_names)
         used = [f"{names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}"]
         proxy_train = None
@@ -324,8 +366,8 @@ class PlannerNode(Node):
                 used.append(f"{topic}@{self._stamps[topic]}")
                 break
         if proxy_train is None:
-            raise RequestError("reference_features: empty, and no training map with the proxy's layers "
-                               "was received on /world/train_proxy_features or /world/train_features")
+            raise ValueError("reference_features: empty, and no training map with the proxy's layers "
+                             "was received on /world/train_proxy_features or /world/train_features")
         target = None
         for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
             grid = self.maps.get(topic)
@@ -334,42 +376,29 @@ class PlannerNode(Node):
                 used.append(f"{topic}@{self._stamps[topic]}")
                 break
         if target is None:
-            raise RequestError("reference_features: empty, and no training map has the layers of the weights")
+            raise ValueError("reference_features: empty, and no training map has the layers of the weights")
         if target.shape[:2] != proxy_train.shape[:2]:
-            raise RequestError("reference_features: empty, and the training maps have different sizes")
-        return dict(
-            proxy_train_features=proxy_train.features.astype(np.float64),
-            target_train_features=target.features.astype(np.float64),
-            proxy_weights=_flat(self.proxy.weights),
-            start=(int(self.proxy.start_row), int(self.proxy.start_col)),
-            horizon=int(self.proxy.horizon),
-        ), used
+            raise ValueError("reference_features: empty, and the training maps have different sizes")
+        try:
+            proxy_mdp = GridMDP(proxy_train.features.astype(np.float64),
+                                (int(self.proxy.start_row), int(self.proxy.start_col)), int(self.proxy.horizon))
+        except ValueError as exc:
+            raise ValueError(f"reference_features: empty, and the proxy on {names.TOPIC_PROXY} does not fit "
+                             f"its training map ({exc})") from None
+        return ReferenceJob(proxy_mdp=proxy_mdp, proxy_weights=_flat(self.proxy.weights),
+                            target_features=target.features.astype(np.float64)), used
 
     # ------------------------------------------------------------------ planning
 
     async def _plan(self, req: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
         try:
-            job = self.validate(req)
-        except RequestError as exc:
+            accepted = self.validate(req)
+            offload = self._offloads["trajectory" if accepted.job.mode == "trajectory" else "dp"]
+            outcome = await offload.run(self.executor, run_plan, accepted.job)
+        except (ValueError, OffloadError) as exc:
             response.success, response.message = False, str(exc)
             return response
-        if self._pending >= self.max_pending:
-            response.success = False
-            response.message = f"busy: {self._pending} requests are pending (max_pending={self.max_pending})"
-            return response
-        grid, label, sources = job.pop("grid"), job.pop("label"), job.pop("sources")
-        self._pending += 1
-        try:
-            plan, _ = await self._pool.submit(self.executor, run_plan, job)
-        except ValueError as exc:
-            response.success, response.message = False, str(exc)
-            return response
-        except (BrokenProcessPool, RuntimeError, Exception) as exc:  # noqa: BLE001
-            response.success, response.message = False, f"planning failed: {type(exc).__name__}: {exc}"
-            self.get_logger().error(response.message)
-            return response
-        finally:
-            self._pending -= 1
+        grid, label, sources, plan = accepted.grid, accepted.label, accepted.sources, outcome.plan
         stamp = self.get_clock().now().to_msg()
         path = conv.cells_to_path(plan.cells, resolution=grid.resolution, origin=grid.origin,
                                   height=grid.shape[0], width=grid.shape[1], stamp=stamp)
@@ -388,6 +417,7 @@ class PlannerNode(Node):
         response.success = True
         response.message = (f"{label}: {plan.mode}/{plan.baseline} objective {plan.objective:.6g} "
                             f"({plan.solver}, {len(plan.cells) - 1} moves)"
+                            + (f"; {outcome.fallback}" if outcome.fallback else "")
                             + (f"; inputs: {', '.join(sources)}" if sources else ""))
         response.path = path
         response.objective = float(plan.objective)

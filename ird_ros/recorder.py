@@ -9,22 +9,21 @@ deserialized) and writes the bytes with the ``rosbags`` library into a rosbag2 b
     python -m ird_ros.recorder --ros-args --params-file msgs_config/params/graph.yaml \\
         -p output_dir:=bags/run2          # topics from graph.yaml's recorder section
 
-Parameters (node ``recorder``):
+Parameters (node ``recorder``; types and defaults in ``PARAMETERS``):
 
 - ``output_dir`` (string, required): the bag folder to create. An existing path is refused
   (the node exits with status 2 and says so): a bag is never overwritten or appended to.
   ``{stamp}`` in it is replaced by the local time (``runs/bag_{stamp}`` ->
   ``runs/bag_20250101_120000``), so a params file can give a fresh folder per run.
-- ``topics`` (string array): topics to record; empty (the default) = every topic that has a
-  publisher, discovered every ``discovery_period`` seconds, minus ``exclude_topics``.
-- ``exclude_topics`` (string array, default ``[/rosout, /parameter_events]``).
-- ``discovery_period`` (double, default 0.25 s): how often the graph is polled for new
-  topics / publishers.
-- ``queue_depth`` (int, default 1000): history depth of the recording subscriptions.
-- ``flush_period`` (double, default 1.0 s, 0 = off): how often buffered messages are
-  written out to the MCAP file as a finished chunk (bounds memory; after a SIGKILL the
-  data is on disk for ``mcap recover``, but only a clean stop writes the index and
-  ``metadata.yaml`` that readers need).
+- ``topics``: topics to record; empty (the default) = every topic that has a publisher,
+  discovered every ``discovery_period`` seconds, minus ``exclude_topics``.
+- ``exclude_topics``: topics never recorded when ``topics`` is empty.
+- ``discovery_period`` (seconds): how often the graph is polled for new topics / publishers.
+- ``queue_depth``: history depth of the recording subscriptions.
+- ``flush_period`` (seconds, 0 = off): how often the bag is checkpointed
+  (``ird_ros.bag_repair.checkpoint``): the buffered messages go to disk as a finished chunk
+  followed by a provisional MCAP end, fsynced, and ``metadata.yaml`` is rewritten. A SIGKILL
+  (or a crash of the machine) then loses only what arrived since the last checkpoint.
 
 A topic is subscribed once a publisher of it is seen (its type is taken from the graph),
 with the publishers' QoS: transient local when every publisher offers transient local (so
@@ -43,7 +42,9 @@ changes; ``ird_ros.launcher`` uses it to know that the latched messages reached 
 
 Stopping: SIGINT and SIGTERM stop spinning, drain what already arrived, close the writer
 (MCAP summary + ``metadata.yaml``), log the number of messages per topic and exit 0. The
-bag is complete and readable after either signal.
+bag is complete and readable after either signal. After a SIGKILL the bag as of the last
+checkpoint normally opens as it is (``rosbags``, ``mcap``); ``scripts/reindex_bag.py BAG``
+rebuilds its index and summary, and is needed when the kill hit a write.
 """
 
 from __future__ import annotations
@@ -72,11 +73,20 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from ird_ros.bag_reader import register_type
+from ird_ros.bag_repair import checkpoint, close_writer
+from ird_ros.node_params import Param, declare_all
 
-__all__ = ["RecorderError", "RecorderNode", "find_installed_msg", "main"]
+__all__ = ["RecorderError", "RecorderNode", "PARAMETERS", "find_installed_msg", "main"]
 
 NODE_NAME = "recorder"
-DEFAULT_EXCLUDE = ["/rosout", "/parameter_events"]
+PARAMETERS: dict[str, Param] = {
+    "output_dir": Param("", "The bag folder to create (required; {stamp} = local date and time)"),
+    "topics": Param((), "Topics to record (empty = every topic with a publisher, minus exclude_topics)"),
+    "exclude_topics": Param(("/rosout", "/parameter_events"), "Topics not recorded when topics is empty"),
+    "discovery_period": Param(0.25, "Seconds between polls of the graph for new topics and publishers"),
+    "queue_depth": Param(1000, "History depth of the recording subscriptions"),
+    "flush_period": Param(0.5, "Seconds between checkpoints of the bag: at most this much is lost to a SIGKILL (0 = off)"),
+}
 STATUS_TOPIC = "/recorder/status"
 """std_msgs/String, latched: JSON ``{"output_dir": ..., "counts": {topic: messages}}``."""
 
@@ -170,12 +180,7 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter("output_dir", "")
-        self.declare_parameter("topics", Parameter.Type.STRING_ARRAY)
-        self.declare_parameter("exclude_topics", DEFAULT_EXCLUDE)
-        self.declare_parameter("discovery_period", 0.25)
-        self.declare_parameter("queue_depth", 1000)
-        self.declare_parameter("flush_period", 1.0)
+        declare_all(self, PARAMETERS)
 
         out = str(self.get_parameter("output_dir").value or "").strip()
         if not out:
@@ -195,6 +200,7 @@ class RecorderNode(Node):
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         self.writer: Writer | None = Writer(self.output_dir, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.open()
+        checkpoint(self.writer)  # metadata.yaml and a readable (empty) MCAP from the start
         self.counts: dict[str, int] = {}
         self._recording_conns: dict[str, Any] = {}
         self._recording_subs: dict[str, Any] = {}
@@ -261,6 +267,7 @@ class RecorderNode(Node):
             topic, msgtype, typestore=self.typestore, offered_qos_profiles=[_bag_qos(p) for p in profiles]
         )
         self._recording_conns[topic] = conn
+        self._dirty = True  # the next checkpoint lists the topic in metadata.yaml
         self.counts[topic] = 0
         qos = subscription_qos(profiles, self.depth)
         self._recording_subs[topic] = self.create_subscription(
@@ -298,15 +305,10 @@ class RecorderNode(Node):
     # ----------------------------------------------------------------- output
 
     def flush(self) -> None:
-        """Write the pending MCAP chunk to disk (rosbags keeps up to 1 MiB in memory)."""
+        """Checkpoint the bag if anything changed (rosbags keeps up to 1 MiB in memory)."""
         if self.writer is None or not self._dirty:
             return
-        storage = getattr(self.writer, "storage", None)
-        chunk = getattr(storage, "chunk", None)
-        # rosbags' McapWriter internals; if they change, fall back to its own 1 MiB chunking
-        if chunk is not None and getattr(chunk, "msgs", None) and hasattr(storage, "close_chunk"):
-            storage.close_chunk()
-            storage.bio.flush()
+        checkpoint(self.writer)
         self._dirty = False
 
     def close(self) -> dict[str, int]:
@@ -315,7 +317,7 @@ class RecorderNode(Node):
             writer, self.writer = self.writer, None
             for sub in self._recording_subs.values():
                 self.destroy_subscription(sub)
-            writer.close()
+            close_writer(writer)
         return dict(self.counts)
 
     def summary(self) -> str:

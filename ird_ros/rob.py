@@ -27,10 +27,16 @@ from rclpy.node import Node
 from ird_msgs.msg import PlanInfo, ProxyReward, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.node_main import declare, run_node, exit_process
+from ird_ros.node_main import exit_process, run_node
+from ird_ros.node_params import Param, declare_all
 from ird_ros.rob_logic import RobExecutor
 
-__all__ = ["RobNode", "main"]
+__all__ = ["RobNode", "PARAMETERS", "main"]
+
+PARAMETERS: dict[str, Param] = {
+    "rate_hz": Param(5.0, "Cells Rob moves per second", min_value=0.01, max_value=1000.0, read_only=True),
+    "child_frame_id": Param("base_link", "Odometry child frame"),
+}
 
 
 def _key(stamp: Any) -> tuple[int, int]:
@@ -40,9 +46,8 @@ def _key(stamp: Any) -> tuple[int, int]:
 class RobNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_ROB, **kwargs)
-        self.rate_hz = declare(self, "rate_hz", 5.0, "Cells Rob moves per second", min_value=0.01,
-                               max_value=1000.0, read_only=True)
-        self.child_frame_id = declare(self, "child_frame_id", "base_link", "Odometry child frame")
+        p = declare_all(self, PARAMETERS)
+        self.rate_hz, self.child_frame_id = p["rate_hz"], p["child_frame_id"]
         self.rob = RobExecutor()
         self._geometry: tuple[float, tuple[float, float]] | None = None
         self._labels: OrderedDict[tuple[int, int], str] = OrderedDict()  # plan_info stamp -> label

@@ -50,13 +50,14 @@ class RobExecutor:
     Feed it the world (:meth:`set_terrain`, :meth:`set_rewards`) and plans (:meth:`set_plan`),
     then call :meth:`tick` at the execution rate. A plan received before the terrain and the
     rewards waits (``pending``) and starts once both are known. A terrain without an entry in
-    the reward table (e.g. "unknown") earns 0.
+    the reward table (e.g. "unknown") earns 0. An empty reward table (a world file that gives no
+    true rewards) is known too: Rob drives, and the return is NaN (not judged).
     """
 
     def __init__(self) -> None:
         self._labels: np.ndarray | None = None
         self._class_names: tuple[str, ...] = ()
-        self._rewards: dict[str, float] = {}
+        self._rewards: dict[str, float] | None = None  # None until the world says
         self._cells: list[tuple[int, int]] | None = None
         self._stamp: Any = None
         self._label = ""
@@ -133,7 +134,7 @@ class RobExecutor:
     @property
     def ready(self) -> bool:
         """The terrain and the true rewards are known."""
-        return self._labels is not None and bool(self._rewards)
+        return self._labels is not None and self._rewards is not None
 
     @property
     def pending(self) -> bool:
@@ -162,7 +163,8 @@ class RobExecutor:
         terrain = self.terrain_at(row, col)
         self._touched_lava |= terrain == LAVA
         self._reached_target |= terrain == TARGET
-        self._return += self._rewards.get(terrain, 0.0)
+        assert self._rewards is not None
+        self._return += self._rewards.get(terrain, 0.0) if self._rewards else math.nan
         step = self._index
         horizon = len(self._cells) - 1
         self._done = step >= horizon

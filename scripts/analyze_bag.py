@@ -11,13 +11,15 @@ numpy and matplotlib for the plots): the ``ird_msgs`` types are read from the re
 Prints:
   - per topic: type, message count, first and last log time (s since the bag's first
     message), mean rate, QoS durability;
-  - per mission (one executed plan, see ird_ros/bag_reader.py): label, plan moves and
+  - per mission (one executed plan, see ird_ros/missions.py): label, plan moves and
     length, executed length (odometry), steps, touched lava, reached target, true return
     (from the mission's final /rob/status);
-  - per plan label: runs, lava and target fractions, mean true return.
+  - per plan label: runs, lava and target fractions, mean true return;
+  - per question to the designer (/ird/queries): query id, strategy, information gain,
+    options, answer, who answered, answers in the evidence after it.
 Writes into --out (default: BAG_analysis next to the bag) trajectories_<i>.png (Rob's
-odometry and plans over the ground-truth /world/terrain), true_return.png and
-posterior.png; with --json, the whole report as JSON. Exit status 1 if the bag can't be read.
+odometry and plans over the ground-truth /world/terrain), true_return.png,
+posterior.png and query_rounds.png (each question's options on the map); with --json, the whole report as JSON. Exit status 1 if the bag can't be read.
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from ird_ros.bag_reader import REPO_MSG_ROOT, analyze, make_typestore  # noqa: E402
+from ird_ros.bag_io import REPO_MSG_ROOT, make_typestore  # noqa: E402
+from ird_ros.bag_reader import analyze  # noqa: E402
+from ird_ros.query_rounds import rounds_table  # noqa: E402
 
 
 def _fmt(value: float | None, spec: str = ".3f") -> str:
@@ -70,6 +74,10 @@ def print_report(report: dict) -> None:
         for label, s in report["labels"].items():
             print(f"  {label}: {s['runs']} run(s), lava {s['lava_fraction']:.2f}, "
                   f"target {s['target_fraction']:.2f}, mean true return {_fmt(s['mean_true_return'])}")
+    if report.get("query_rounds"):
+        print()
+        print("Questions to the designer:")
+        print(rounds_table(report["query_rounds"]))
     if report["plots"]:
         print()
         print("Plots:")

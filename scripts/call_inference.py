@@ -2,11 +2,12 @@
 """Minimal client of the IRD inference service (/ird/infer): copy it and adapt.
 
     .venv/bin/python scripts/call_inference.py                 # a small generated map
-    .venv/bin/python scripts/call_inference.py --from-world    # the world node's map + proxy
+    .venv/bin/python scripts/call_inference.py --from-world    # the world node's training worlds + proxy
     options: --method maxent_z|sample_z  --beta 10  --num-samples 200  --seed 0  --timeout 120
 
 The inference node must be running in the same ROS domain (ROS_DOMAIN_ID), e.g. started with
-``scripts/launch_graph.py --nodes inference`` (or the whole graph for --from-world).
+``scripts/launch_graph.py --nodes inference`` (or the whole graph for --from-world; with
+``--world FILE`` the request holds every training world of the file).
 Prints the posterior: per feature the proxy weight, posterior mean and std; then the
 sampler's diagnostics (acceptance rate, largest split R-hat, smallest ESS).
 """
@@ -20,10 +21,13 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 
-from ird_msgs.msg import FeatureGrid, ProxyReward
+from ird_core.inference import METHODS
 from ird_msgs.srv import InferReward
 from ird_ros import conversions, names
-from ird_ros.testing import spin_until
+from ird_ros.domains import dds_process_env
+from ird_ros.offload import service_qos
+from ird_ros.waits import spin_until
+from ird_ros.world import TOPIC_INFER_REQUEST
 
 
 def generated_request(seed: int) -> InferReward.Request:
@@ -40,32 +44,28 @@ def generated_request(seed: int) -> InferReward.Request:
 
 
 def world_request(node: Node, timeout: float) -> InferReward.Request:
-    """The training map and proxy the world node publishes (latched: we get the latest)."""
-    got: dict[str, object] = {}
+    """The request the world node poses on /world/infer_request (latched: we get the latest):
+    training map, start, horizon, proxy weights, proxy_map and every further training world."""
+    got: list[InferReward.Request] = []
     qos = names.latched_qos()  # transient local: receives what was published before we joined
-    node.create_subscription(FeatureGrid, names.TOPIC_TRAIN_FEATURES, lambda m: got.setdefault("map", m), qos)
-    node.create_subscription(ProxyReward, names.TOPIC_PROXY, lambda m: got.setdefault("proxy", m), qos)
-    spin_until(node, lambda: len(got) == 2, timeout=timeout,
-               what=f"{names.TOPIC_TRAIN_FEATURES} and {names.TOPIC_PROXY} (is the world node running?)")
-    proxy: ProxyReward = got["proxy"]  # type: ignore[assignment]
-    request = InferReward.Request()
-    request.training_map = got["map"]
-    request.start_row, request.start_col, request.horizon = proxy.start_row, proxy.start_col, proxy.horizon
-    request.proxy_weights = list(proxy.weights)
-    return request
+    node.create_subscription(InferReward.Request, TOPIC_INFER_REQUEST, got.append, qos)
+    spin_until(node, lambda: bool(got), timeout=timeout,
+               what=f"{TOPIC_INFER_REQUEST} (is the world node running?)")
+    return got[-1]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--from-world", action="store_true", help="use /world/train_features and /world/proxy")
-    parser.add_argument("--method", default="maxent_z", choices=["maxent_z", "sample_z"])
+    parser.add_argument("--from-world", action="store_true", help="use the world node's request (/world/infer_request)")
+    parser.add_argument("--method", default="maxent_z", choices=METHODS)
     parser.add_argument("--beta", type=float, default=10.0)
     parser.add_argument("--num-samples", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--timeout", type=float, default=120.0, help="seconds for discovery and for the answer")
     args = parser.parse_args()
 
-    rclpy.init()
+    with dds_process_env():  # this client's own sockets stay on loopback too
+        rclpy.init()
     node = rclpy.create_node("call_inference")
     try:
         request = world_request(node, args.timeout) if args.from_world else generated_request(args.seed)
@@ -75,7 +75,7 @@ def main() -> int:
         request.seed = args.seed
         request.prior_sigma = 0.0  # 0 = the node's default
 
-        client = node.create_client(InferReward, names.SRV_INFER)
+        client = node.create_client(InferReward, names.SRV_INFER, qos_profile=service_qos())
         if not client.wait_for_service(timeout_sec=args.timeout):
             print(f"error: {names.SRV_INFER} not available (ROS_DOMAIN_ID right? inference running?)", file=sys.stderr)
             return 1

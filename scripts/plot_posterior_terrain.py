@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -33,6 +32,13 @@ import numpy as np  # noqa: E402
 from ird_core import inference, lavaland  # noqa: E402
 from ird_core.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
 
+from _progress import step_progress  # noqa: E402  (scripts/_progress.py)
+
+
+def observed_terrains(instance: lavaland.LavalandInstance) -> list[Terrain]:
+    """The terrains with an observation mean: the latent conditions have no gold cells."""
+    return [Terrain(k) for k in range(instance.observation_model.means.shape[0])]
+
 
 def terrain_spreads(samples: np.ndarray, instance: lavaland.LavalandInstance) -> dict[str, dict[str, float]]:
     """Per terrain: mean and sd over draws of ``w . mu_t``, and the mean per-cell sd on the test map.
@@ -43,11 +49,11 @@ def terrain_spreads(samples: np.ndarray, instance: lavaland.LavalandInstance) ->
         ``{terrain name: {"mean_reward", "sd_of_mean_reward", "cell_sd"}}`` (cell_sd NaN if the
         terrain is absent from the test map).
     """
-    means = instance.observation_model.means  # (4, d), indexed by Terrain
+    means = instance.observation_model.means  # (T, d), indexed by Terrain
     rewards = samples @ means.T  # (K, 4)
     cell_sd = np.std(np.einsum("kd,hwd->khw", samples, instance.test_features, optimize=True), axis=0)
     out = {}
-    for terrain in Terrain:
+    for terrain in observed_terrains(instance):
         mask = instance.test_labels == terrain
         out[TERRAIN_NAMES[terrain]] = {
             "mean_reward": float(rewards[:, terrain].mean()),
@@ -72,15 +78,10 @@ def main(argv: list[str] | None = None) -> int:
 
     instance = lavaland.make_instance("latent_raw", args.seed)
     start = time.perf_counter()
-
-    def progress(step: int, total: int) -> None:
-        if step % 20 == 0 or step == total:
-            print(f"\r  MCMC step {step}/{total}", end="", file=sys.stderr, flush=True)
-
-    posterior = inference.sample_posterior(
-        instance.proxy_weights, lavaland.train_mdp(instance), args.beta, "maxent_z", args.samples, args.seed,
-        proxy_features=lavaland.proxy_feature_expectations(instance), progress=progress)
-    print(file=sys.stderr)
+    with step_progress("maxent_z MCMC") as progress:
+        posterior = inference.sample_posterior(
+            instance.proxy_weights, lavaland.train_mdp(instance), args.beta, "maxent_z", args.samples, args.seed,
+            proxy_features=lavaland.proxy_feature_expectations(instance), progress=progress)
     elapsed = time.perf_counter() - start
     print(f"latent_raw seed {args.seed}, MaxEnt-Z, beta {args.beta:g}: {posterior.num_samples} samples in "
           f"{elapsed:.1f} s; acceptance {posterior.acceptance_rate:.2f}, R-hat {posterior.r_hat_max:.3f}, "
@@ -98,14 +99,15 @@ def main(argv: list[str] | None = None) -> int:
 
     rewards = posterior.samples @ instance.observation_model.means.T
     cell = np.std(np.einsum("kd,hwd->khw", posterior.samples, instance.test_features, optimize=True), axis=0)
-    names = [TERRAIN_NAMES[t] for t in Terrain]
+    terrains = observed_terrains(instance)
+    names = [TERRAIN_NAMES[t] for t in terrains]
     colours = ["#b08850", "#4c9a2a", "#2a6fdb", "#d8431c"]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
-    box = axes[0].boxplot([rewards[:, t] for t in Terrain], tick_labels=names, patch_artist=True, showfliers=False)
+    box = axes[0].boxplot([rewards[:, t] for t in terrains], tick_labels=names, patch_artist=True, showfliers=False)
     axes[0].axhline(0.0, color="0.6", lw=0.8)
     axes[0].set_ylabel(r"posterior reward $w_i \cdot \mu_{terrain}$")
     axes[0].set_title("Reward of each terrain's mean observation")
-    groups = [cell[instance.test_labels == t] for t in Terrain]
+    groups = [cell[instance.test_labels == t] for t in terrains]
     box2 = axes[1].boxplot([g if g.size else [np.nan] for g in groups], tick_labels=names, patch_artist=True)
     axes[1].set_ylabel(r"sd over draws of $w_i \cdot F[cell]$")
     axes[1].set_title("Per-cell reward spread, test map")

@@ -9,13 +9,21 @@ Every condition x planner gets N seeded trials (trial i uses instance seed S + i
 conditions). One trial = one Lavaland instance: the literal plan, and per Z-approximation ONE
 posterior whose samples feed every IRD planner (ird_core.experiments.run_trial). Locally the
 trials run in a process pool (W workers, default = cores); with --scheduler on a Dask
-distributed cluster (same trial function). A trial is a pure function of its spec, so the
-numbers do not depend on W, the scheduler or completion order.
+distributed cluster (same trial function; both in scripts/_parallel.py, tqdm progress on
+stderr). A trial is a pure function of its spec, so the numbers do not depend on W, the
+scheduler or completion order.
 
 Outputs in --out (default out/experiments): results.csv (one row per experiment x condition x
 planner), trials.csv (one row per trial x planner), results.md (tables + settings + wall
 time), figure4_lava.png (lava fraction per condition: literal / IRD Sample-Z / IRD MaxEnt-Z,
 95% Wilson error bars), factorial_<z>.png (per condition, granularity x baseline), run.json.
+
+--world FILE (a world file, e.g. worlds/figure1.yaml): the trials run on the file's instance
+instead of Lavaland (condition ``file``; --conditions, --size, --horizon, --obs-dim unused).
+The world is fixed, so trial i differs only in its seed SEED + i, which seeds the posterior
+sampler and the Sample-Z proxies: N trials measure how the plans vary with the posterior's
+randomness on that one map. The posterior is the joint one over every training world of the
+file. A bad file: exit status 2 with the loader's message (file, key, value).
 
 --via-ros: instead, run a few trials (--trials, default 3 here) through the ROS graph's
 services (/world/generate, /ird/infer, /ird/plan) and compare the planned cells with direct
@@ -24,93 +32,45 @@ library calls; exit status 1 on any disagreement.
 
 from __future__ import annotations
 
-import os
+import sys
+from pathlib import Path
 
-# One BLAS thread per worker: the pool already uses every core.
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/_parallel.py
+
+import _parallel  # noqa: E402  (first: one BLAS thread per worker, before numpy loads)
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import dataclasses  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from ird_core import experiments as ex  # noqa: E402
-from ird_core.lavaland import CONDITIONS  # noqa: E402
+from ird_core.lavaland import CONDITIONS, FILE_CONDITION  # noqa: E402
+
+ORDER = CONDITIONS + (FILE_CONDITION,)  # tables and figures: the paper's conditions, then a world file
 
 ROOT = Path(__file__).resolve().parents[1]
 Z_LABEL = {"sample_z": "IRD Sample-Z", "maxent_z": "IRD MaxEnt-Z"}
 
 
-# --------------------------------------------------------------------------- progress
-
-
-class Progress:
-    """A plain text progress bar on stderr (carriage return on a TTY, lines otherwise)."""
-
-    def __init__(self, total: int, stream=sys.stderr, width: int = 30) -> None:
-        self.total, self.done, self.stream, self.width = total, 0, stream, width
-        self.t0 = time.monotonic()
-        self.tty = stream.isatty()
-        self._last_line = -1.0
-
-    def update(self, n: int = 1) -> None:
-        self.done += n
-        elapsed = time.monotonic() - self.t0
-        eta = elapsed / self.done * (self.total - self.done) if self.done else math.nan
-        filled = int(self.width * self.done / max(self.total, 1))
-        text = (f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} trials "
-                f"{elapsed:6.0f} s elapsed, ETA {eta:5.0f} s")
-        if self.tty:
-            self.stream.write("\r" + text)
-            if self.done == self.total:
-                self.stream.write("\n")
-        elif self.done == self.total or elapsed - self._last_line >= 10:
-            self.stream.write(text + "\n")
-            self._last_line = elapsed
-        self.stream.flush()
-
-
 # --------------------------------------------------------------------------- running
 
 
-def run_local(specs: list[ex.TrialSpec], workers: int, progress: Progress | None = None) -> list[ex.TrialResult]:
+def _flatten(per_trial: list[list[ex.TrialResult]]) -> list[ex.TrialResult]:
+    return [r for rs in per_trial for r in rs]
+
+
+def run_local(specs: list[ex.TrialSpec], workers: int, progress=None) -> list[ex.TrialResult]:
     """Run specs in a process pool; results in spec order."""
-    out: list[list[ex.TrialResult] | None] = [None] * len(specs)
-    if workers <= 1:
-        for i, spec in enumerate(specs):
-            out[i] = ex.run_trial(spec)
-            if progress:
-                progress.update()
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(ex.run_trial, s): i for i, s in enumerate(specs)}
-            for fut in as_completed(futures):
-                out[futures[fut]] = fut.result()
-                if progress:
-                    progress.update()
-    return [r for rs in out for r in rs]  # type: ignore[union-attr]
+    return _flatten(_parallel.map_local(ex.run_trial, specs, workers, progress))
 
 
-def run_dask(specs: list[ex.TrialSpec], client, progress: Progress | None = None) -> list[ex.TrialResult]:
+def run_dask(specs: list[ex.TrialSpec], client, progress=None) -> list[ex.TrialResult]:
     """Run specs on a Dask distributed client; results in spec order."""
-    from distributed import as_completed as dask_completed
-
-    futures = client.map(ex.run_trial, specs, pure=False)
-    index = {f.key: i for i, f in enumerate(futures)}
-    out: list = [None] * len(specs)
-    for fut in dask_completed(futures):
-        out[index[fut.key]] = fut.result()
-        if progress:
-            progress.update()
-    return [r for rs in out for r in rs]
+    return _flatten(_parallel.map_dask(ex.run_trial, specs, client, progress))
 
 
 # --------------------------------------------------------------------------- outputs
@@ -161,7 +121,7 @@ def markdown_table(summaries: list[ex.CellSummary], experiment: str) -> str:
 def claim_check(summaries: list[ex.CellSummary]) -> list[str]:
     """The paper's claims, checked on the main experiment."""
     main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
-    conditions = sorted({c for c, _ in main}, key=lambda c: CONDITIONS.index(c))
+    conditions = sorted({c for c, _ in main}, key=lambda c: ORDER.index(c))
     lines = []
     for z in ex.Z_METHODS:
         for c in conditions:
@@ -215,7 +175,7 @@ def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
 
     files = []
     main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
-    conditions = [c for c in CONDITIONS if (c, "literal") in main]
+    conditions = [c for c in ORDER if (c, "literal") in main]
     planners = [("literal", "Literal", "#c44e52")] + [(f"ird_{z}", Z_LABEL[z], col)
                                                      for z, col in zip(ex.Z_METHODS, ("#4c72b0", "#55a868"))]
     planners = [p for p in planners if any((c, p[0]) in main for c in conditions)]
@@ -443,9 +403,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=int, default=None, help="trials per condition (default 100; 3 with --via-ros)")
     p.add_argument("--out", type=Path, default=ROOT / "out" / "experiments")
     p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
+    _parallel.add_arguments(p)
     p.add_argument("--via-ros", action="store_true")
+    p.add_argument("--world", type=Path, default=None, metavar="FILE",
+                   help="run the trials on this world file (seeds vary the sampler only)")
     p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS)
     p.add_argument("--z-methods", nargs="+", default=list(ex.Z_METHODS), choices=ex.Z_METHODS)
     p.add_argument("--no-factorial", action="store_true", help="main experiment only")
@@ -476,26 +437,33 @@ def spec_settings(args) -> dict:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     settings = spec_settings(args)
+    conditions = list(args.conditions)
+    if args.world is not None:
+        from ird_core.world_file import load_world
+
+        if args.via_ros:
+            print("--world: not supported with --via-ros (use launch_graph.py --world FILE)", file=sys.stderr)
+            return 2
+        try:
+            load_world(args.world)
+        except ValueError as exc:
+            print(f"--world: {exc}", file=sys.stderr)
+            return 2
+        conditions = [FILE_CONDITION]
+        settings["world"] = str(args.world.resolve())
     if args.via_ros:
         return run_via_ros(args, settings)
     trials = 100 if args.trials is None else args.trials
     if trials < 1:
         print("--trials must be >= 1", file=sys.stderr)
         return 2
-    specs = ex.make_specs(args.conditions, trials, args.seed, **settings)
+    specs = ex.make_specs(conditions, trials, args.seed, **settings)
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python scripts/run_experiments.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    print(f"{len(specs)} trials ({trials} per condition x {len(args.conditions)} conditions), "
-          f"{'Dask ' + args.scheduler if args.scheduler else f'{args.workers} local worker(s)'}", file=sys.stderr)
-    progress = Progress(len(specs))
+    print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), "
+          f"{_parallel.describe(args.workers, args.scheduler)}", file=sys.stderr)
     t0 = time.monotonic()
-    if args.scheduler:
-        from distributed import Client
-
-        with Client(args.scheduler) as client:
-            results = run_dask(specs, client, progress)
-    else:
-        results = run_local(specs, args.workers, progress)
+    results = _flatten(_parallel.parallel_map(ex.run_trial, specs, args.workers, args.scheduler))
     wall = time.monotonic() - t0
     summaries = ex.aggregate(results)
     write_trials_csv(args.out / "trials.csv", results)

@@ -1,13 +1,16 @@
-"""msgs_config/params/graph.yaml: one section per node, every parameter commented."""
+"""msgs_config/params/graph.yaml: one section per node, every parameter commented, and every
+parameter one the node declares, with its type and (unless a listed override) its default."""
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 GRAPH = Path(__file__).resolve().parents[1] / "msgs_config" / "params" / "graph.yaml"
-NODES = {"world", "perception", "inference", "planner", "rob", "recorder"}
+NODES = {"world", "perception", "inference", "planner", "rob", "designer", "recorder"}
 
 
 def test_every_node_has_a_parameter_section() -> None:
@@ -29,3 +32,61 @@ def test_every_parameter_is_commented() -> None:
                     and not lines[j].strip().endswith(":"):
                 j -= 1  # a group of related keys shares one comment (e.g. start_row/start_col)
             assert j >= 0 and lines[j].strip().startswith("#"), f"graph.yaml line {i + 1} has no comment: {stripped}"
+
+
+# Deliberate differences between graph.yaml and the nodes' defaults: the recorder's defaults
+# (record every topic, no output folder: refused) suit a bare `python -m ird_ros.recorder -p ...`,
+# the graph records its own topics into a fresh runs/ folder.
+OVERRIDES = {("recorder", "topics"), ("recorder", "output_dir")}
+
+
+def _parameter_tables() -> dict[str, dict[str, Any]]:
+    """{node name: its module's PARAMETERS}: what each node declares (ird_ros.node_params.declare_all)."""
+    from ird_ros import graph, recorder
+
+    modules = {spec.name: spec.module for spec in graph.NODES} | {recorder.NODE_NAME: "ird_ros.recorder"}
+    assert set(modules) == NODES
+    return {name: importlib.import_module(module).PARAMETERS for name, module in modules.items()}
+
+
+def _ros_type(value: Any) -> type:
+    """The Python type that stands for the ROS parameter type (string arrays: list or tuple)."""
+    return list if isinstance(value, (list, tuple)) else type(value)
+
+
+def test_graph_yaml_sets_declared_parameters_with_their_types_and_defaults() -> None:
+    from ird_ros.node_params import Param
+
+    data = yaml.safe_load(GRAPH.read_text())
+    tables = _parameter_tables()
+    for node, section in data.items():
+        table = tables[node]
+        assert table and all(isinstance(p, Param) for p in table.values()), node
+        for key, value in section["ros__parameters"].items():
+            assert key in table, f"graph.yaml sets {node}.{key}, which the node does not declare"
+            default = table[key].default
+            assert _ros_type(value) is _ros_type(default), (node, key, value, default)
+            if isinstance(value, list):
+                assert all(isinstance(v, str) for v in value), (node, key)
+            same = (list(value) == list(default)) if isinstance(value, list) else value == default
+            assert same != ((node, key) in OVERRIDES), (
+                f"{node}.{key}: graph.yaml says {value!r}, the node's default is {default!r}"
+                + (" (a listed override that no longer differs)" if same else ""))
+
+
+def test_overrides_are_set_by_the_yaml() -> None:
+    data = yaml.safe_load(GRAPH.read_text())
+    for node, key in OVERRIDES:
+        assert key in data[node]["ros__parameters"], (node, key)
+
+
+def test_parameter_defaults_are_valid() -> None:
+    """Every default lies in its own range and choices (the node would not start otherwise)."""
+    for node, table in _parameter_tables().items():
+        for key, p in table.items():
+            if p.min_value is not None:
+                assert p.default >= p.min_value, (node, key)
+            if p.max_value is not None:
+                assert p.default <= p.max_value, (node, key)
+            if p.choices is not None:
+                assert p.default in p.choices, (node, key)

@@ -10,6 +10,7 @@ from hypothesis import given, settings, strategies as st
 from scipy.special import logsumexp
 
 from ird_core import inference as I
+from ird_core import lavaland
 from ird_core import mcmc
 from ird_core.enumeration import brute_feature_expectations, brute_log_partition
 from ird_core.mdp import GridMDP, feature_expectations
@@ -151,7 +152,6 @@ def test_default_proxy_samples_are_seeded_prior_draws() -> None:
 
 
 def test_default_proxy_samples_match_lavaland() -> None:
-    lavaland = pytest.importorskip("ird_core.lavaland")
     instance = lavaland.make_instance("side_effects", 0, size=5, horizon=4)
     mdp = lavaland.train_mdp(instance)
     model = I.make_posterior_model(instance.proxy_weights, mdp, 1.0, "sample_z", seed=3, num_proxy_samples=20)

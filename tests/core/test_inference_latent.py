@@ -1,8 +1,8 @@
 """IRD on the latent_raw condition (d = 50): convergence and the lava-uncertainty effect.
 
 Slow (about 3 s per seed) but part of the default suite. It uses the sampler's defaults, which
-must bring the rank-normalised split R-hat below 1.05 (seed 1 reached 1.071 with the earlier,
-shorter defaults).
+must bring the rank-normalised split R-hat below 1.05: shorter warm-ups and chains than the
+defaults leave it near 1.07 on seed 1, so this also guards the defaults.
 """
 
 from __future__ import annotations
@@ -10,10 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ird_core import inference
-
-lavaland = pytest.importorskip("ird_core.lavaland")
-from ird_core.terrain import Terrain  # noqa: E402
+from ird_core import inference, lavaland
+from ird_core.terrain import Terrain
 
 #: Lava's posterior reward spread must exceed every safe terrain's by at least this factor.
 #: Measured on seed 0 (beta 1): about 5x for w . mu_t and 2.3x per cell (per-cell spreads include
@@ -39,5 +37,5 @@ def test_latent_raw_maxent_converges_and_lava_is_uncertain(seed: int) -> None:
     assert spread[Terrain.LAVA] >= MEAN_SPREAD_FACTOR * spread[safe].max(), spread
     # ... and per cell of the test map, grouped by terrain.
     cell_sd = np.einsum("kd,hwd->khw", post.samples, instance.test_features).std(axis=0)
-    by_terrain = {t: cell_sd[instance.test_labels == t].mean() for t in Terrain}
+    by_terrain = {t: cell_sd[instance.test_labels == t].mean() for t in (*safe, Terrain.LAVA)}  # no gold here
     assert by_terrain[Terrain.LAVA] >= CELL_SPREAD_FACTOR * max(by_terrain[t] for t in safe), by_terrain

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ird_core import mcmc
+from ird_core import mcmc, mcmc_kernels
 
 
 def ar1(rng: np.random.Generator, rho: float, chains: int, n: int, dim: int) -> np.ndarray:
@@ -124,6 +124,22 @@ def test_warmup_windows_schedule() -> None:
         assert all(length >= 10 for length in lengths)
 
 
+
+@pytest.mark.parametrize("warmup", [0, 10, 29, 30, 60, 100, 300, 1000])
+def test_warmup_schedule_follows_the_windows(warmup: int) -> None:
+    windows = mcmc.warmup_windows(warmup)
+    schedule = mcmc.warmup_schedule(warmup)
+    assert len(schedule) == warmup
+    in_window = [any(s <= it < e for s, e in windows) for it in range(warmup)]
+    assert [stage.collect for stage in schedule] == in_window
+    assert [it + 1 for it, stage in enumerate(schedule) if stage.window_end] == [e for _, e in windows]
+    # Short HMC trajectories exactly until the final buffer (throughout when there are no windows).
+    final_buffer = windows[-1][1] if windows else warmup
+    assert [stage.short for stage in schedule] == [it < final_buffer for it in range(warmup)]
+    fixed = mcmc.warmup_schedule(warmup, adapt_preconditioner=False)
+    assert all(stage.short and not stage.collect and not stage.window_end for stage in fixed)
+
+
 def test_estimate_preconditioner_recovers_covariance() -> None:
     rng = np.random.default_rng(7)
     a = rng.standard_normal((5, 5))
@@ -220,3 +236,68 @@ def test_gradient_kernels_need_a_gradient() -> None:
         mcmc.sample_chains(no_grad, np.zeros((2, 2)), 5, kernel="mala", warmup=0)
     result = mcmc.sample_chains(no_grad, np.zeros((2, 2)), 5, kernel="rwm", warmup=0)
     assert result.draws.shape == (2, 5, 2)
+
+
+
+# ------------------------------------------------------------------------------ kernels
+
+
+def test_kernel_table_is_the_single_list_of_kernels() -> None:
+    assert mcmc.KERNELS == tuple(mcmc.KERNEL_TABLE)
+    assert mcmc.TARGET_ACCEPT == {name: k.target_accept for name, k in mcmc.KERNEL_TABLE.items()}
+    for name, kernel in mcmc.KERNEL_TABLE.items():
+        assert mcmc_kernels.get_kernel(name) is kernel
+    with pytest.raises(ValueError, match="kernel"):
+        mcmc_kernels.get_kernel("nuts")
+
+
+@pytest.mark.parametrize("kernel", mcmc.KERNELS)
+def test_one_kernel_step_leaves_the_target_invariant(kernel: str) -> None:
+    # Exact draws of N(mean, cov) stay N(mean, cov) after one transition of any kernel, even with
+    # a large step and a mismatched preconditioner: 40 000 chains make it a sharp moment test.
+    mean, cov = np.array([1.0, -1.0]), np.array([[1.0, 0.8], [0.8, 2.0]])
+    rng = np.random.default_rng(4)
+    start = rng.multivariate_normal(mean, cov, size=40_000)
+    k = mcmc.KERNEL_TABLE[kernel]
+    target = gaussian_target(mean, cov)
+    state = k.init(start, target)
+    params = mcmc.KernelParams(np.full(len(start), 1.2), mcmc.Preconditioner(np.diag([1.0, 0.5])), 3)
+    state, info = k.step(rng, state, target, params)
+    assert state.position.shape == start.shape and state.log_density.shape == (len(start),)
+    assert (state.gradient is None) == (kernel == "rwm")
+    np.testing.assert_allclose(state.log_density, target(state.position)[0])
+    assert 0.05 < info.is_accepted.mean() < 0.95  # the step moves the chains
+    assert info.num_evaluations == (3 if kernel == "hmc" else 1)
+    n = len(start)
+    assert np.all(np.abs(state.position.mean(axis=0) - mean) < 5 * np.sqrt(np.diag(cov) / n))
+    # sd of a sample variance ~ var sqrt(2 / n); moved and unmoved chains are correlated, so
+    # the start's own error is removed by comparing with it.
+    drift = np.cov(state.position.T) - np.cov(start.T)
+    assert np.all(np.abs(drift) < 5 * np.sqrt(2 / n) * np.sqrt(np.outer(np.diag(cov), np.diag(cov))))
+
+
+def test_step_info_flags_divergent_transitions() -> None:
+    stiff = gaussian_target(np.zeros(2), np.diag([1.0, 1e-4]))
+    k = mcmc.KERNEL_TABLE["hmc"]
+    state = k.init(np.full((6, 2), 0.01), stiff)
+    rng = np.random.default_rng(0)
+    _, wild = k.step(rng, state, stiff, mcmc.KernelParams(np.full(6, 5.0), mcmc.Preconditioner.identity(2), 10))
+    assert np.all(wild.is_divergent) and not np.any(wild.is_accepted)
+    _, tame = k.step(rng, state, stiff, mcmc.KernelParams(np.full(6, 1e-3), mcmc.Preconditioner.identity(2), 10))
+    assert not np.any(tame.is_divergent)
+
+
+def test_gradient_kernel_refuses_a_state_without_gradient() -> None:
+    target = gaussian_target(np.zeros(2), np.eye(2))
+    state = mcmc.KERNEL_TABLE["rwm"].init(np.zeros((2, 2)), target)
+    params = mcmc.KernelParams(np.full(2, 0.1), mcmc.Preconditioner.identity(2))
+    for kernel in ("mala", "hmc"):
+        with pytest.raises(ValueError, match="state"):
+            mcmc.KERNEL_TABLE[kernel].step(np.random.default_rng(0), state, target, params)
+
+
+def test_sampler_counts_divergences_per_chain() -> None:
+    result = mcmc.sample_chains(gaussian_target(np.zeros(2), np.eye(2)), np.zeros((3, 2)) + 0.1, 20,
+                                kernel="hmc", warmup=40, seed=1)
+    assert result.num_divergent is not None and result.num_divergent.shape == (3,)
+    assert np.all(result.num_divergent == 0)

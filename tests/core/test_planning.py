@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from ird_core import planning as P
+from ird_core import trajectory_solver as TS
 from ird_core.enumeration import all_trajectories, brute_log_partition, trajectory_features
 from ird_core.mdp import GridMDP, successor_table, validate_path
 
@@ -134,7 +135,7 @@ def test_dominated_samples_are_dropped_without_changing_the_plan(seed: int) -> N
     lowered = weights[:1] - np.eye(1, weights.shape[1], weights.shape[1] - 1)
     both = np.concatenate([weights, lowered])
     q = (features.reshape(mdp.num_states, -1) @ both.T).T
-    kept = P._reduce_samples(q)
+    kept = TS._reduce_samples(q)
     assert 0 not in kept and len(both) - 1 in kept
     for solver in TRAJECTORY_SOLVERS:
         plan = P.plan_path(mdp, both, "trajectory", solver=solver)
@@ -149,12 +150,12 @@ def test_milp_on_the_reachable_graph_matches_brute_force(seed: int) -> None:
     mdp, weights, reference = random_case(seed)
     b = reference_baselines(mdp, weights, "initial_state", reference)
     q = (mdp.features.reshape(mdp.num_states, -1) @ weights.T - b).T  # (K, S)
-    reachable = P._start_distance(mdp)[None, :] <= np.arange(mdp.horizon + 1)[:, None]
-    model = P._build_trajectory_milp(mdp, q, reachable)
+    reachable = TS._start_distance(mdp)[None, :] <= np.arange(mdp.horizon + 1)[:, None]
+    model = TS._build_trajectory_milp(mdp, q, reachable)
     assert model.num_edges == sum(  # every reachable (t, s) keeps all its in-grid moves
         int((successor_table(mdp.height, mdp.width)[s] >= 0).sum())
         for t in range(mdp.horizon) for s in np.flatnonzero(reachable[t]))
-    cells, bound = P._solve_trajectory_milp(mdp, model, np.inf)
+    cells, bound = TS._solve_trajectory_milp(mdp, model, np.inf)
     _, values = brute_values(mdp, weights, "trajectory", b)
     assert close(value_of(mdp, weights, "trajectory", b, cells), float(values.max()))
     assert bound >= float(values.max()) - 1e-6
@@ -167,7 +168,7 @@ def test_exhaustive_label_search_matches_brute_force(seed: int) -> None:
     mdp, weights, _ = random_case(seed)
     q = (mdp.features.reshape(mdp.num_states, -1) @ weights.T).T
     multipliers = np.full((1, len(q)), 1.0 / len(q))
-    states = P._label_search(mdp, q, multipliers, -np.inf, 0.0)
+    states = TS._label_search(mdp, q, multipliers, -np.inf, 0.0)
     _, values = brute_values(mdp, weights, "trajectory", np.zeros(len(q)))
     assert close(float(q[:, states].sum(axis=1).min()), float(values.max()))
 

@@ -118,3 +118,19 @@ def test_unknown_class_has_no_reward() -> None:
     statuses = _run(rob)
     assert statuses[0].terrain == "unknown" and statuses[0].true_return == 0.0
     assert statuses[1].reached_target and statuses[1].true_return == pytest.approx(1.0)
+
+
+def test_an_empty_reward_table_drives_with_an_unjudged_return() -> None:
+    """A world file without true rewards: Rob waits for the (empty) table, then drives; the
+    return is NaN, while lava and target are still reported."""
+    labels = np.array([[Terrain.DIRT, Terrain.LAVA], [Terrain.TARGET, Terrain.GRASS]], dtype=np.int8)
+    rob = RobExecutor()
+    rob.set_terrain(labels, TERRAIN_NAMES)
+    rob.set_plan([(0, 0), (0, 1), (1, 1), (1, 0)])
+    assert rob.pending and rob.tick() is None  # no table yet: waits
+    rob.set_rewards((), ())
+    statuses = _run(rob)
+    assert [s.step for s in statuses] == [0, 1, 2, 3]
+    last = statuses[-1]
+    assert last.done and last.touched_lava and last.reached_target
+    assert np.isnan(last.true_return)

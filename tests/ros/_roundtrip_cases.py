@@ -21,8 +21,8 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header
 
-from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior, RobStatus, TerrainGrid
-from ird_msgs.srv import GenerateWorld, InferReward, PlanPath
+from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, QueryRecord, RewardPosterior, RobStatus, TerrainGrid
+from ird_msgs.srv import AnswerQuery, GenerateWorld, InferReward, PlanPath, ProposeQuery
 from ird_ros import conversions as conv
 
 QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -123,6 +123,19 @@ def plan_info() -> PlanInfo:
                     objective=-3.0625, rows=[1, 1, 2, 3], cols=[2, 3, 3, 3])
 
 
+def _options() -> list[Any]:
+    cells = [[(0, 0), (1, 0), (1, 1)], [(0, 0), (0, 1), (0, 1)]]
+    return conv.options_to_paths([np.array(c) for c in cells], resolution=0.5, origin=(-1.0, 2.0))
+
+
+def query_record() -> QueryRecord:
+    return conv.query_record_to_msg(query_id=7, event="answered", strategy="info_gain", options=_options(),
+                                    feature_names=("dirt", "grass", "target"),
+                                    option_features=_rng(6).normal(size=(2, 3)), information_gain=0.3125,
+                                    chosen=1, beta=2.5, answered_by="simulated", num_answers=3,
+                                    stamp=_header().stamp)
+
+
 # name -> (message type, builder)
 TOPIC_CASES: dict[str, tuple[type, Callable[[], Any]]] = {
     "feature_grid": (FeatureGrid, lambda: feature_grid(15, 15, 4)),
@@ -133,12 +146,15 @@ TOPIC_CASES: dict[str, tuple[type, Callable[[], Any]]] = {
     "proxy_reward": (ProxyReward, proxy_reward),
     "rob_status": (RobStatus, rob_status),
     "plan_info": (PlanInfo, plan_info),
+    "query_record": (QueryRecord, query_record),
 }
 
 SERVICES: dict[str, type] = {
     "infer_reward": InferReward,
     "plan_path": PlanPath,
     "generate_world": GenerateWorld,
+    "propose_query": ProposeQuery,
+    "answer_query": AnswerQuery,
 }
 
 
@@ -189,10 +205,21 @@ def generate_request() -> GenerateWorld.Request:
     return GenerateWorld.Request(condition="reward_hacking", seed=123)
 
 
+def propose_request() -> ProposeQuery.Request:
+    return ProposeQuery.Request(map=feature_grid(6, 8, 3, seed=13), start_row=1, start_col=2, horizon=4,
+                                num_options=3, strategy="random", seed=17)
+
+
+def answer_request() -> AnswerQuery.Request:
+    return AnswerQuery.Request(query_id=42, chosen=1, beta=0.75, answered_by="web")
+
+
 SERVICE_REQUESTS: dict[str, Callable[[], Any]] = {
     "infer_reward": infer_request,
     "plan_path": plan_request,
     "generate_world": generate_request,
+    "propose_query": propose_request,
+    "answer_query": answer_request,
 }
 
 
@@ -226,6 +253,22 @@ def respond(request: Any) -> Any:
         resp.cols = [c for _, c in cells]
         resp.objective = float(weights.sum()) + len(request.label)
         resp.success, resp.message = True, digest(request)
+        return resp
+    if isinstance(request, ProposeQuery.Request):
+        grid = conv.feature_grid_from_msg(request.map, field="map")
+        q, d = int(request.num_options), len(grid.layers)
+        cells = [np.array([(request.start_row, request.start_col + min(t * k, grid.shape[1] - 1 - request.start_col))
+                           for t in range(request.horizon + 1)]) for k in range(q)]
+        return ProposeQuery.Response(
+            success=True, message=digest(request), query_id=request.seed + 1,
+            options=conv.options_to_paths(cells, resolution=grid.resolution, origin=grid.origin),
+            feature_names=list(grid.layers), option_features=np.arange(q * d, dtype=float).tolist(),
+            information_gain=0.5)
+    if isinstance(request, AnswerQuery.Request):
+        resp = AnswerQuery.Response(success=True, message=digest(request))
+        post = _Posterior(np.full((2, 3), request.beta))
+        post.method, post.beta, post.seed, post.prior_sigma = "sample_z", 1.0, request.query_id, 1.0
+        resp.posterior = conv.posterior_to_msg(post, feature_names=("a", "b", "c"), proxy_weights=np.ones(3))
         return resp
     if isinstance(request, GenerateWorld.Request):
         return GenerateWorld.Response(success=True, message=f"{request.condition}/{request.seed}/{digest(request)}")

@@ -9,7 +9,6 @@ Nothing sleeps: waits are on launcher events, process exits (pidfd) and output l
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import select
 import signal
@@ -22,14 +21,13 @@ from typing import Any
 import pytest
 
 from _standin_node import STANDIN_SPECS
-from ird_ros import bag_reader, names
+from ird_ros import bag_reader, domains, names
 from ird_ros.launcher import GraphLauncher, LaunchError, graph_specs
 from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "scripts" / "launch_graph.py"
 ALL = [s.name for s in graph_specs()]
-REAL_NODES_EXIST = all(importlib.util.find_spec(s.module) is not None for s in graph_specs())
 
 
 def _running(pid: int) -> bool:
@@ -71,7 +69,9 @@ def test_api_ready_death_report_respawn_and_stop(tmp_path: Path) -> None:
             assert " ready " in row and str(graph.pids()[name]) in row
         first_pids = graph.pids()
         assert all(_running(pid) for pid in first_pids.values())
-        assert graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+        # loopback-only transport (stronger than discovery range LOCALHOST, see ird_ros.domains)
+        assert graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
+        assert graph.env[domains.DDS_PROFILE_VAR] == str(domains.DDS_PROFILE)
         assert 0 <= graph.domain_id <= 101
 
         # SIGKILL rob (respawn on): reported, restarted, ready again with new endpoints
@@ -189,7 +189,6 @@ def test_cli_standins_sigint_stops_everything(tmp_path: Path) -> None:
     _cli_sigint_run(tmp_path, ["--node-table", "_standin_node:STANDIN_SPECS"], ALL)
 
 
-@pytest.mark.skipif(not REAL_NODES_EXIST, reason="not every node module of ird_ros.graph exists yet")
 def test_cli_real_graph(tmp_path: Path) -> None:
     result = _cli_sigint_run(tmp_path, [], ALL)
     for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN):

@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import rclpy
+from ird_core import checks
 from ird_core import inference as core_inference
 from ird_core import lavaland
 from ird_core.mdp import GridMDP
@@ -194,7 +195,7 @@ def _short_map(req: InferReward.Request) -> None:
 
 def _proxy_map(req: InferReward.Request, h: int, w: int, d: int, fill: float = 0.5) -> None:
     req.proxy_map = conv.feature_grid_to_msg(np.full((h, w, d), 0.25), [f"p{i}" for i in range(d)])
-    if not math.isfinite(fill):
+    if not math.isfinite(fill) or abs(fill) > checks.MAX_ABS_FEATURE:
         data = np.frombuffer(req.proxy_map.data, np.float32).copy()
         data[0] = fill
         _set_data(req.proxy_map, data)
@@ -235,6 +236,13 @@ MALFORMED: list[tuple[str, Callable[[InferReward.Request], None], str]] = [
     ("proxy_map data without layers", lambda r: (_proxy_map(r, SIZE, SIZE, 4), setattr(r.proxy_map, "layers", [])),
      "proxy_map.layers"),
     ("weights vs proxy_map layers", lambda r: _proxy_map(r, SIZE, SIZE, 3), "proxy_weights"),
+    # Finite but out of range (ird_core.checks): named up front, not an internal error later.
+    ("weights 1e308", lambda r: setattr(r, "proxy_weights", [1e308, 0.1, 0.2, 0.3]), "proxy_weights"),
+    ("beta 1e308", lambda r: setattr(r, "beta", 1e308), "beta"),
+    ("prior_sigma 1e-300", lambda r: setattr(r, "prior_sigma", 1e-300), "prior_sigma"),
+    ("prior_sigma 1e308", lambda r: setattr(r, "prior_sigma", 1e308), "prior_sigma"),
+    ("map values 1e30", lambda r: _set_data(r.training_map, np.full(SIZE * SIZE * 4, 1e30)), "training_map.data"),
+    ("proxy_map values 1e30", lambda r: _proxy_map(r, SIZE, SIZE, 4, 1e30), "proxy_map.data"),
 ]
 
 
@@ -270,10 +278,11 @@ def corruptions(draw: Any) -> tuple[str, Callable[[InferReward.Request], None]]:
     field = draw(st.sampled_from(_FIELDS))
     bad_float = st.one_of(st.just(math.nan), st.just(math.inf), st.just(-math.inf))
     if field == "training_map.data":
-        mode = draw(st.sampled_from(["nan", "length"]))
-        if mode == "nan":
+        mode = draw(st.sampled_from(["nan", "huge", "length"]))
+        if mode in ("nan", "huge"):
             index = draw(st.integers(0, SIZE * SIZE * 4 - 1))
-            value = draw(bad_float)
+            sign = draw(st.sampled_from([1.0, -1.0]))
+            value = draw(bad_float) if mode == "nan" else sign * draw(st.floats(checks.MAX_ABS_FEATURE * 1.001, 3e38))
 
             def corrupt(r: InferReward.Request) -> None:
                 data = np.frombuffer(r.training_map.data, np.float32).copy()
@@ -307,10 +316,17 @@ def corruptions(draw: Any) -> tuple[str, Callable[[InferReward.Request], None]]:
         value = draw(st.one_of(
             st.lists(finite, max_size=12).filter(lambda ws: len(ws) != 4),
             st.lists(st.one_of(finite, bad_float), min_size=4, max_size=4).filter(
-                lambda ws: not all(math.isfinite(w) for w in ws))))
+                lambda ws: not all(math.isfinite(w) for w in ws)),
+            st.lists(st.one_of(finite, st.floats(checks.MAX_ABS_WEIGHT * 1.001, 1e308)), min_size=4, max_size=4)
+            .filter(lambda ws: max(map(abs, ws)) > checks.MAX_ABS_WEIGHT)))
         return field, lambda r: setattr(r, "proxy_weights", value)
     if field in ("beta", "prior_sigma"):
-        value = draw(st.one_of(bad_float, st.floats(max_value=-1e-300, allow_nan=False, allow_infinity=False)))
+        low, high = checks.RANGES[field]
+        out_of_range = [st.floats(high * 1.001, 1e308)]
+        if field == "prior_sigma":  # 0 means the node's default: only positive values below the range
+            out_of_range.append(st.floats(1e-308, low * 0.999))
+        value = draw(st.one_of(bad_float, st.floats(max_value=-1e-300, allow_nan=False, allow_infinity=False),
+                               *out_of_range))
         return field, lambda r: setattr(r, field, value)
     if field == "method":
         value = draw(st.text(max_size=12).filter(lambda s: s not in core_inference.METHODS))
@@ -359,8 +375,8 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     from rcl_interfaces.srv import DescribeParameters
 
     big = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
-    # About 3 s with the node's short sampler settings (500 HMC iterations per chain); 120 samples
-    # took seconds before the linear-space engine and finished under the probes after it.
+    # About 3 s with the node's short sampler settings (500 HMC iterations per chain): the run
+    # must outlast the 20 probes below, which a few hundred samples would not.
     long_req = make_request(big, method="maxent_z", num_samples=2000, seed=1)
     node = client.node
     describe = node.create_client(DescribeParameters, "/inference/describe_parameters")

@@ -1,4 +1,4 @@
-"""The world node over real DDS: every latched topic for every condition, /world/generate."""
+"""The world node over real DDS: every latched topic for every condition, /world/generate, world files."""
 
 from __future__ import annotations
 
@@ -7,14 +7,16 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
+import yaml
 
-from ird_core import lavaland
+from ird_core import lavaland, world_file
 from ird_core.terrain import TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
 from ird_ros import names
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+from ird_ros.testing import (DomainLease, NodeProcess, call_service, lease_domain, ros_context, spawn_node_process,
+                             spin_until, wait_for_service)
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -177,3 +179,71 @@ def test_bad_startup_parameter_exits_2(ros_domain: DomainLease) -> None:
         assert "condition" in proc.output()
     finally:
         proc.stop()
+
+
+def test_bad_world_file_fails_at_start_naming_file_and_key(ros_domain: DomainLease, tmp_path: Path) -> None:
+    good = yaml.safe_load((ROOT / "worlds" / "figure1.yaml").read_text())
+    good["test_world"]["horizon"] = 0
+    for image in ("figure1_train.png", "figure1_test.png"):
+        (tmp_path / image).write_bytes((ROOT / "worlds" / image).read_bytes())
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(good))
+    proc = spawn_node_process(world_args() + ["-p", f"world_file:={bad}"], domain=ros_domain, name="bad_file")
+    try:
+        proc.wait_for_output("cannot start", timeout=30.0)
+        assert proc.proc.wait(timeout=30.0) == 2, proc.describe()
+        assert f"{bad}: test_world.horizon:" in proc.output() and "world ready" not in proc.output()
+    finally:
+        proc.stop()
+
+
+def test_world_file_is_published_with_every_training_world() -> None:
+    """two_training_worlds.yaml: the file's maps and geometry; /world/infer_request carries the
+    second training world; /world/generate replaces the file world and "file" brings it back.
+    A domain of its own: the module's world node publishes the same topics."""
+    import rclpy
+    from ird_msgs.srv import InferReward
+
+    from ird_ros.world import TOPIC_INFER_REQUEST
+
+    wf = world_file.load_world_file(ROOT / "worlds" / "two_training_worlds.yaml")
+    inst = wf.instance
+    args = world_args() + ["-p", f"world_file:={wf.path}"]
+    with lease_domain() as lease, ros_context(lease) as ctx, \
+            spawn_node_process(args, domain=lease, name="file_world", ready_text="world ready") as proc:
+        node = rclpy.create_node("file_world_probe", context=ctx)
+        try:
+            probe = Probe(node, proc)
+            requests: list[Any] = []
+            node.create_subscription(InferReward.Request, TOPIC_INFER_REQUEST, requests.append, names.latched_qos())
+            msgs = probe.messages(lavaland.FILE_CONDITION, inst.seed)
+            spin_until(node, lambda: bool(requests), timeout=20.0, what=TOPIC_INFER_REQUEST, processes=[proc])
+            train = conv.feature_grid_from_msg(msgs[names.TOPIC_TRAIN_FEATURES])
+            assert np.array_equal(train.features, inst.train_features.astype(np.float32))
+            assert train.resolution == wf.resolution and train.origin == wf.origin[:2]
+            terrain = conv.terrain_grid_from_msg(msgs[names.TOPIC_TERRAIN])
+            assert terrain.class_names == inst.terrain_names
+            assert np.array_equal(terrain.classes, inst.test_labels.astype(np.uint8))
+            req = requests[-1]
+            assert req.training_map.header.stamp == msgs[names.TOPIC_PROXY].header.stamp
+            (extra,) = inst.extra_training_worlds
+            (sent,) = req.training_worlds
+            assert np.array_equal(conv.feature_grid_from_msg(sent.training_map).features,
+                                  extra.features.astype(np.float32))
+            assert (sent.start_row, sent.start_col, sent.horizon) == (*extra.start, extra.horizon)
+            assert np.array_equal(np.asarray(sent.proxy_weights), extra.proxy_weights)
+            assert not sent.proxy_map.layers  # the proxy is on the hypothesis features
+
+            assert probe.generate("side_effects", 4).success
+            assert probe.messages("side_effects", 4)[names.TOPIC_TERRAIN].class_names == list(TERRAIN_NAMES)
+            again = probe.generate(lavaland.FILE_CONDITION, 0)
+            assert again.success, again.message
+            back = probe.messages(lavaland.FILE_CONDITION, inst.seed)
+            assert back[names.TOPIC_PROXY].header.stamp != msgs[names.TOPIC_PROXY].header.stamp
+        finally:
+            node.destroy_node()
+
+
+def test_generate_file_without_a_world_file_is_rejected(probe: Probe) -> None:
+    response = probe.generate(lavaland.FILE_CONDITION, 0)
+    assert not response.success and response.message.startswith("condition:"), response.message

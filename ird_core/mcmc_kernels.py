@@ -1,0 +1,361 @@
+"""MCMC transition kernels for a batch of chains, shaped like blackjax: ``init``/``step`` pairs.
+
+A target is a function ``log_density(x (C, d)) -> (log p (C,), grad (C, d) | None)`` evaluated on
+every chain at once, so each step costs ONE batched call (``L`` calls for HMC with ``L`` leapfrog
+steps). The gradient may be any deterministic vector field: MALA and HMC stay exact (the
+Metropolis-Hastings correction uses the same field at both ends), only their efficiency depends on
+how well it matches ``grad log p``.
+
+Each kernel is a ``Kernel`` in ``KERNEL_TABLE``:
+
+- ``init(position (C, d), log_density) -> ChainState`` evaluates the target at the start;
+- ``step(rng, state, log_density, params) -> (ChainState, StepInfo)`` makes one Metropolis-Hastings
+  transition of every chain with ``KernelParams`` (per-chain step size, preconditioner, leapfrog
+  steps) fixed by the caller, who owns adaptation.
+
+Kernels (one operator each):
+
+- ``rwm``: random-walk Metropolis, ``x' = x + h L z``.
+- ``mala``: Metropolis-adjusted Langevin, ``x' = x + h^2/2 M g(x) + h L z``.
+- ``hmc``: Hamiltonian Monte Carlo with ``L`` leapfrog steps in whitened coordinates.
+
+Here ``z ~ N(0, I)``, ``M = L L^T`` is a preconditioner (an estimate of the posterior
+covariance) and ``h`` a step size. Random numbers are drawn in a fixed order (proposal normals,
+then the acceptance uniforms) so that a seed fixes the draws.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+from typing import Callable, NamedTuple
+
+import numpy as np
+from scipy.linalg import solve_triangular
+
+__all__ = [
+    "KERNELS",
+    "KERNEL_TABLE",
+    "PRECONDITIONERS",
+    "TARGET_ACCEPT",
+    "DIVERGENCE_THRESHOLD",
+    "LogDensityFn",
+    "Preconditioner",
+    "ChainState",
+    "StepInfo",
+    "KernelParams",
+    "Kernel",
+    "rwm_proposal",
+    "mala_mean",
+    "mala_log_proposal",
+    "leapfrog",
+    "metropolis_accept",
+    "rwm_init",
+    "gradient_init",
+    "rwm_step",
+    "mala_step",
+    "hmc_step",
+    "get_kernel",
+    "num_leapfrog_steps",
+    "step_sizes",
+]
+
+#: ``x (C, d) -> (log p (C,), grad (C, d) or None)``.
+LogDensityFn = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray | None]"]
+
+PRECONDITIONERS: tuple[str, ...] = ("identity", "diag", "dense")
+#: A transition whose energy error (minus the log Metropolis-Hastings ratio) exceeds this many nats
+#: is flagged divergent, as in Stan and blackjax.
+DIVERGENCE_THRESHOLD = 1000.0
+
+
+# --------------------------------------------------------------------------------------------
+# Preconditioner
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Preconditioner:
+    """A linear change of variables ``x = L u`` with ``M = L L^T`` (posterior covariance estimate).
+
+    Attributes:
+        chol: ``(d, d)`` lower-triangular ``L`` (diagonal for ``diag``/``identity``).
+        kind: one of ``PRECONDITIONERS``.
+    """
+
+    chol: np.ndarray
+    kind: str = "dense"
+
+    @classmethod
+    def identity(cls, dim: int, scale: float = 1.0) -> "Preconditioner":
+        return cls(scale * np.eye(dim), "identity")
+
+    @property
+    def cov(self) -> np.ndarray:
+        """``M = L L^T``; ``(d, d)``."""
+        return self.chol @ self.chol.T
+
+    def scale(self, z: np.ndarray) -> np.ndarray:
+        """``L z`` for a batch: ``(C, d) -> (C, d)``."""
+        return z @ self.chol.T
+
+    def whiten(self, v: np.ndarray) -> np.ndarray:
+        """``L^{-1} v`` for a batch: ``(C, d) -> (C, d)``."""
+        return solve_triangular(self.chol, v.T, lower=True).T
+
+    def scale_gradient(self, g: np.ndarray) -> np.ndarray:
+        """``L^T g``, the gradient in whitened coordinates: ``(C, d) -> (C, d)``."""
+        return g @ self.chol
+
+    def times_cov(self, g: np.ndarray) -> np.ndarray:
+        """``M g`` for a batch: ``(C, d) -> (C, d)``."""
+        return (g @ self.chol) @ self.chol.T
+
+
+# --------------------------------------------------------------------------------------------
+# Operators
+# --------------------------------------------------------------------------------------------
+
+
+def rwm_proposal(x: np.ndarray, z: np.ndarray, step: np.ndarray, precond: Preconditioner) -> np.ndarray:
+    """Random-walk proposal ``x + h L z``.
+
+    Args:
+        x: ``(C, d)`` positions; z: ``(C, d)`` standard normals; step: ``(C,)`` or scalar ``h``.
+    Returns:
+        ``(C, d)``.
+    """
+    return x + np.reshape(step, (-1, 1)) * precond.scale(z)
+
+
+def mala_mean(x: np.ndarray, grad: np.ndarray, step: np.ndarray, precond: Preconditioner) -> np.ndarray:
+    """Langevin proposal mean ``x + h^2 / 2 M g(x)``; ``(C, d)`` -> ``(C, d)``."""
+    h = np.reshape(step, (-1, 1))
+    return x + 0.5 * h**2 * precond.times_cov(grad)
+
+
+def mala_log_proposal(x_to: np.ndarray, mean_from: np.ndarray, step: np.ndarray,
+                      precond: Preconditioner) -> np.ndarray:
+    """``log q(x_to | x_from)`` up to a constant shared by both directions; ``(C,)``.
+
+    ``q = N(mean_from, h^2 M)``, so this is ``-|L^{-1}(x_to - mean_from)|^2 / (2 h^2)``.
+    """
+    u = precond.whiten(x_to - mean_from)
+    return -0.5 * np.sum(u**2, axis=1) / np.reshape(step, (-1,)) ** 2
+
+
+def leapfrog(x: np.ndarray, p: np.ndarray, grad: np.ndarray, step: np.ndarray, num_steps: int,
+             log_density: LogDensityFn, precond: Preconditioner
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``num_steps`` leapfrog steps of HMC with whitened momentum ``p`` (kinetic ``|p|^2 / 2``).
+
+    In whitened coordinates ``u = L^{-1} x`` the force is ``L^T g``, so a step is
+    ``p += h/2 L^T g; x += h L p; p += h/2 L^T g``. Volume preserving and reversible for any
+    deterministic field ``g``.
+
+    Args:
+        x, p, grad: ``(C, d)``; step: ``(C,)``; log_density: the batched target.
+    Returns:
+        The end position ``(C, d)``, momentum ``(C, d)``, log density ``(C,)`` and field ``(C, d)``.
+    """
+    h = np.reshape(step, (-1, 1))
+    log_p = None
+    p = p + 0.5 * h * precond.scale_gradient(grad)
+    for i in range(num_steps):
+        x = x + h * precond.scale(p)
+        log_p, grad = log_density(x)
+        if grad is None:
+            raise ValueError("log_density: hmc needs a gradient, got None")
+        p = p + (0.5 if i == num_steps - 1 else 1.0) * h * precond.scale_gradient(grad)
+    return x, p, log_p, grad
+
+
+def metropolis_accept(log_ratio: np.ndarray, uniform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Metropolis-Hastings decisions for a batch of chains.
+
+    Args:
+        log_ratio: ``(C,)`` log acceptance ratios (NaN is treated as a rejection).
+        uniform: ``(C,)`` uniforms on ``[0, 1)``.
+    Returns:
+        ``accept (C,)`` booleans and the acceptance probabilities ``min(1, ratio)`` ``(C,)``.
+    """
+    safe = np.where(np.isnan(log_ratio), -np.inf, log_ratio)
+    prob = np.exp(np.minimum(safe, 0.0))
+    return np.log(uniform) < safe, prob
+
+
+
+# --------------------------------------------------------------------------------------------
+# Kernels: init / step pairs
+# --------------------------------------------------------------------------------------------
+
+
+class ChainState(NamedTuple):
+    """State of ``C`` chains.
+
+    Attributes:
+        position: ``(C, d)``.
+        log_density: ``(C,)`` target values at ``position``.
+        gradient: ``(C, d)`` target field at ``position``; None for kernels that need none (RWM).
+    """
+
+    position: np.ndarray
+    log_density: np.ndarray
+    gradient: "np.ndarray | None"
+
+
+class StepInfo(NamedTuple):
+    """What one transition of ``C`` chains did.
+
+    Attributes:
+        acceptance_probability: ``(C,)`` ``min(1, MH ratio)``.
+        is_accepted: ``(C,)`` booleans.
+        is_divergent: ``(C,)`` booleans: energy error above ``DIVERGENCE_THRESHOLD`` or NaN.
+        num_evaluations: batched ``log_density`` calls made.
+    """
+
+    acceptance_probability: np.ndarray
+    is_accepted: np.ndarray
+    is_divergent: np.ndarray
+    num_evaluations: int
+
+
+class KernelParams(NamedTuple):
+    """Parameters of one transition, set by the caller (the warm-up adapts them).
+
+    Attributes:
+        step_size: ``(C,)`` step size ``h`` of each chain.
+        preconditioner: ``M = L L^T``.
+        num_leapfrog: leapfrog steps (HMC only).
+    """
+
+    step_size: np.ndarray
+    preconditioner: Preconditioner
+    num_leapfrog: int = 1
+
+
+class Kernel(NamedTuple):
+    """An MCMC kernel: its ``init``/``step`` pair and what the warm-up needs to tune it.
+
+    Attributes:
+        init: ``(position (C, d), log_density) -> ChainState``.
+        step: ``(rng, state, log_density, params) -> (ChainState, StepInfo)``.
+        target_accept: default target of the mean acceptance probability.
+        default_step: ``dim -> h``, the optimal-scaling step for a standard normal target.
+        step_jitter: range of a uniform factor applied to each chain's step at every iteration, or None.
+        uses_trajectory: True if ``num_leapfrog`` follows the trajectory length (HMC).
+    """
+
+    init: Callable[[np.ndarray, LogDensityFn], ChainState]
+    step: Callable[[np.random.Generator, ChainState, LogDensityFn, KernelParams], "tuple[ChainState, StepInfo]"]
+    target_accept: float
+    default_step: Callable[[int], float]
+    step_jitter: "tuple[float, float] | None" = None
+    uses_trajectory: bool = False
+
+
+def _evaluate(log_density: LogDensityFn, x: np.ndarray, need_grad: bool
+              ) -> "tuple[np.ndarray, np.ndarray | None]":
+    log_p, grad = log_density(x)
+    log_p = np.asarray(log_p, dtype=np.float64).reshape(x.shape[0])
+    if need_grad:
+        if grad is None:
+            raise ValueError("log_density: this kernel needs a gradient, got None")
+        grad = np.asarray(grad, dtype=np.float64).reshape(x.shape)
+    return log_p, grad
+
+
+def rwm_init(position: np.ndarray, log_density: LogDensityFn) -> ChainState:
+    """State of a gradient-free kernel at ``position`` ``(C, d)``: one batched call."""
+    log_p, _ = _evaluate(log_density, position, need_grad=False)
+    return ChainState(position, log_p, None)
+
+
+def gradient_init(position: np.ndarray, log_density: LogDensityFn) -> ChainState:
+    """State of a gradient kernel (MALA, HMC) at ``position`` ``(C, d)``: one batched call."""
+    log_p, grad = _evaluate(log_density, position, need_grad=True)
+    return ChainState(position, log_p, grad)
+
+
+def _metropolis_step(rng: np.random.Generator, state: ChainState, proposal: np.ndarray, log_p: np.ndarray,
+                     grad: "np.ndarray | None", log_ratio: np.ndarray, num_evaluations: int
+                     ) -> tuple[ChainState, StepInfo]:
+    """Accept or reject every chain's proposal ``(C, d)`` given its log MH ratio ``(C,)``."""
+    accept, prob = metropolis_accept(log_ratio, rng.random(state.position.shape[0]))
+    keep = accept[:, None]
+    new = ChainState(np.where(keep, proposal, state.position), np.where(accept, log_p, state.log_density),
+                     None if state.gradient is None else np.where(keep, grad, state.gradient))
+    divergent = ~(log_ratio > -DIVERGENCE_THRESHOLD)  # NaN counts as divergent
+    return new, StepInfo(prob, accept, divergent, num_evaluations)
+
+
+def _gradient_of(state: ChainState, kernel: str) -> np.ndarray:
+    if state.gradient is None:
+        raise ValueError(f"state: {kernel} needs a gradient, got None (initialise with gradient_init)")
+    return state.gradient
+
+
+def rwm_step(rng: np.random.Generator, state: ChainState, log_density: LogDensityFn, params: KernelParams
+             ) -> tuple[ChainState, StepInfo]:
+    """One random-walk Metropolis transition of every chain (one batched call)."""
+    z = rng.standard_normal(state.position.shape)
+    proposal = rwm_proposal(state.position, z, params.step_size, params.preconditioner)
+    log_p, _ = _evaluate(log_density, proposal, need_grad=False)
+    return _metropolis_step(rng, state, proposal, log_p, None, log_p - state.log_density, 1)
+
+
+def mala_step(rng: np.random.Generator, state: ChainState, log_density: LogDensityFn, params: KernelParams
+              ) -> tuple[ChainState, StepInfo]:
+    """One Metropolis-adjusted Langevin transition of every chain (one batched call)."""
+    h, precond = params.step_size, params.preconditioner
+    z = rng.standard_normal(state.position.shape)
+    proposal = mala_mean(state.position, _gradient_of(state, "mala"), h, precond) + np.reshape(h, (-1, 1)) * precond.scale(z)
+    log_p, grad = _evaluate(log_density, proposal, need_grad=True)
+    forward = -0.5 * np.sum(z**2, axis=1)
+    backward = mala_log_proposal(state.position, mala_mean(proposal, grad, h, precond), h, precond)
+    return _metropolis_step(rng, state, proposal, log_p, grad, log_p - state.log_density + backward - forward, 1)
+
+
+def hmc_step(rng: np.random.Generator, state: ChainState, log_density: LogDensityFn, params: KernelParams
+             ) -> tuple[ChainState, StepInfo]:
+    """One HMC transition of every chain: ``params.num_leapfrog`` batched calls."""
+    z = rng.standard_normal(state.position.shape)
+    target = partial(_evaluate, log_density, need_grad=True)
+    proposal, p_end, log_p, grad = leapfrog(state.position, z, _gradient_of(state, "hmc"), params.step_size,
+                                            params.num_leapfrog, target, params.preconditioner)
+    log_ratio = (log_p - 0.5 * np.sum(p_end**2, axis=1)) - (state.log_density - 0.5 * np.sum(z**2, axis=1))
+    return _metropolis_step(rng, state, proposal, log_p, grad, log_ratio, params.num_leapfrog)
+
+
+#: The kernels by name. Target acceptance: RWM and MALA from the optimal-scaling results of
+#: Roberts, Gelman & Gilks (1997) and Roberts & Rosenthal (1998); HMC as Stan's default. HMC's
+#: step is jittered by +-10% at every iteration so that no fixed trajectory length resonates with
+#: the target.
+KERNEL_TABLE: dict[str, Kernel] = {
+    "rwm": Kernel(rwm_init, rwm_step, 0.234, lambda dim: 2.38 / np.sqrt(dim)),
+    "mala": Kernel(gradient_init, mala_step, 0.574, lambda dim: 1.65 * dim ** (-1.0 / 3.0)),
+    "hmc": Kernel(gradient_init, hmc_step, 0.8, lambda dim: dim ** (-0.25), step_jitter=(0.9, 1.1),
+                  uses_trajectory=True),
+}
+KERNELS: tuple[str, ...] = tuple(KERNEL_TABLE)
+TARGET_ACCEPT: dict[str, float] = {name: k.target_accept for name, k in KERNEL_TABLE.items()}
+
+
+def get_kernel(name: str) -> Kernel:
+    """The kernel called ``name``; ValueError naming the ``kernel`` field otherwise."""
+    if not isinstance(name, str) or name not in KERNEL_TABLE:
+        raise ValueError(f"kernel: expected one of {KERNELS}, got {name!r}")
+    return KERNEL_TABLE[name]
+
+
+def num_leapfrog_steps(kernel: Kernel, step: float, trajectory_length: float, cap: int) -> int:
+    """``clip(round(trajectory_length / step), 1, cap)`` for HMC, 1 for the other kernels."""
+    return int(np.clip(round(trajectory_length / step), 1, cap)) if kernel.uses_trajectory else 1
+
+
+def step_sizes(kernel: Kernel, step: float, num_chains: int, rng: np.random.Generator) -> np.ndarray:
+    """Per-chain step sizes ``(C,)``: ``step`` times the kernel's random jitter factor, if any."""
+    steps = np.full(num_chains, step)
+    if kernel.step_jitter is not None:
+        steps = steps * rng.uniform(*kernel.step_jitter, size=num_chains)
+    return steps

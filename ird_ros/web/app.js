@@ -1,0 +1,337 @@
+// The designer page: draws the state pushed by the server (GET /state, then WebSocket /ws)
+// and sends clicks as POST /answer. Row 0 of every grid is the BOTTOM row of the drawing.
+"use strict";
+
+// Same colours as ird_core.render (TERRAIN_COLORS and the path colours).
+const TERRAIN_COLORS = {dirt: "#8b5a2b", grass: "#3c9a3c", target: "#ffd400", lava: "#e0201b", gold: "#ff8c00"};
+const UNKNOWN_COLOR = "#b8b8b8";
+const PATH_COLORS = ["#1f3fff", "#ff00ff", "#00c8ff", "#000000", "#8a2be2"];
+
+let state = null;
+let socket = null;
+
+const $ = (id) => document.getElementById(id);
+const letter = (k) => String.fromCharCode(65 + k);
+const pathColor = (k) => PATH_COLORS[k % PATH_COLORS.length];
+
+function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs)) {
+    if (key === "style") Object.assign(node.style, value);
+    else if (key === "class") node.className = value;
+    else if (key.startsWith("data-")) node.setAttribute(key, value);
+    else node[key] = value;
+  }
+  for (const child of children) node.append(child);
+  return node;
+}
+
+function showMessage(text, kind) {
+  const box = $("message");
+  box.textContent = text;
+  box.className = "message " + kind;
+}
+
+// ------------------------------------------------------------------ drawing
+
+function setupCanvas(canvas) {
+  const ratio = window.devicePixelRatio || 1;
+  const cssW = canvas.getAttribute("width"), cssH = canvas.getAttribute("height");
+  canvas.style.width = cssW + "px";
+  canvas.style.height = cssH + "px";
+  if (canvas.width !== cssW * ratio) { canvas.width = cssW * ratio; canvas.height = cssH * ratio; }
+  const ctx = canvas.getContext("2d");
+  ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+  ctx.clearRect(0, 0, cssW, cssH);
+  return {ctx, w: Number(cssW), h: Number(cssH)};
+}
+
+// Geometry of an H x W grid centred in a w x h canvas; row 0 at the bottom.
+function gridGeometry(H, W, w, h) {
+  const cell = Math.floor(Math.min(w / W, h / H));
+  const x0 = Math.floor((w - cell * W) / 2), y0 = Math.floor((h - cell * H) / 2);
+  return {
+    cell, x0, y0, H, W,
+    cx: (col) => x0 + (col + 0.5) * cell,
+    cy: (row) => y0 + (H - 1 - row + 0.5) * cell,
+    rect: (row, col) => [x0 + col * cell, y0 + (H - 1 - row) * cell, cell, cell],
+  };
+}
+
+function terrainColor(world, cls) {
+  if (cls === 255 || cls < 0 || cls >= world.class_names.length) return UNKNOWN_COLOR;
+  return TERRAIN_COLORS[world.class_names[cls]] || UNKNOWN_COLOR;
+}
+
+function drawPaths(ctx, geo, options, widthScale) {
+  const q = options.length;
+  options.forEach((cells, k) => {
+    // Offset each option a little so that shared stretches show every colour.
+    const off = (k - (q - 1) / 2) * geo.cell * 0.16;
+    const pts = cells.map(([r, c]) => [geo.cx(c) + off, geo.cy(r) + off]);
+    ctx.lineJoin = "round"; ctx.lineCap = "round";
+    for (const [color, width] of [["white", geo.cell * widthScale + 3], [pathColor(k), geo.cell * widthScale]]) {
+      ctx.strokeStyle = color; ctx.lineWidth = width;
+      ctx.beginPath();
+      pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+      ctx.stroke();
+    }
+  });
+}
+
+function drawEndLabels(ctx, geo, options) {
+  // Frame the end cell in the option's colour (its terrain stays visible) with a letter badge.
+  options.forEach((cells, k) => {
+    const [r, c] = cells[cells.length - 1];
+    const [x, y, s] = geo.rect(r, c);
+    const inset = 2 + 3 * k;
+    ctx.strokeStyle = "white"; ctx.lineWidth = 5;
+    ctx.strokeRect(x + inset, y + inset, s - 2 * inset, s - 2 * inset);
+    ctx.strokeStyle = pathColor(k); ctx.lineWidth = 3;
+    ctx.strokeRect(x + inset, y + inset, s - 2 * inset, s - 2 * inset);
+    // Badges in different corners, so options ending on the same cell show every letter.
+    const rad = Math.max(9, geo.cell * 0.2), corner = [[0, 0], [1, 1], [1, 0], [0, 1]][k % 4];
+    const bx = x + (corner[0] ? s - rad - 2 : rad + 2), by = y + (corner[1] ? s - rad - 2 : rad + 2);
+    ctx.fillStyle = pathColor(k); ctx.strokeStyle = "white"; ctx.lineWidth = 2;
+    ctx.beginPath(); ctx.arc(bx, by, rad, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
+    ctx.fillStyle = "white"; ctx.font = `bold ${Math.round(rad * 1.2)}px sans-serif`;
+    ctx.textAlign = "center"; ctx.textBaseline = "middle";
+    ctx.fillText(letter(k), bx, by + 1);
+  });
+}
+
+function drawStart(ctx, geo, start) {
+  if (!start) return;
+  const x = geo.cx(start[1]), y = geo.cy(start[0]), rad = Math.max(7, geo.cell * 0.24);
+  ctx.fillStyle = "white"; ctx.strokeStyle = "black"; ctx.lineWidth = 2.5;
+  ctx.beginPath(); ctx.arc(x, y, rad, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
+}
+
+function placeholder(ctx, w, h, text) {
+  ctx.fillStyle = "#667"; ctx.font = "14px sans-serif"; ctx.textAlign = "center";
+  ctx.fillText(text, w / 2, h / 2);
+}
+
+// Fill every cell of an H x W grid with colorAt(row, col).
+function fillGrid(ctx, geo, colorAt) {
+  for (let r = 0; r < geo.H; r++) {
+    for (let c = 0; c < geo.W; c++) {
+      ctx.fillStyle = colorAt(r, c);
+      ctx.fillRect(...geo.rect(r, c));
+    }
+  }
+}
+
+function drawMap() {
+  const {ctx, w, h} = setupCanvas($("map"));
+  const world = state && state.world, query = state && state.query;
+  if (!world) return placeholder(ctx, w, h, "No map yet: waiting for the robot's world.");
+  const geo = gridGeometry(world.height, world.width, w, h);
+  fillGrid(ctx, geo, (r, c) => terrainColor(world, world.classes[r][c]));
+  ctx.strokeStyle = "rgba(0,0,0,0.18)"; ctx.lineWidth = 1;
+  for (let r = 0; r <= world.height; r++) {
+    ctx.beginPath(); ctx.moveTo(geo.x0, geo.y0 + r * geo.cell); ctx.lineTo(geo.x0 + geo.W * geo.cell, geo.y0 + r * geo.cell); ctx.stroke();
+  }
+  for (let c = 0; c <= world.width; c++) {
+    ctx.beginPath(); ctx.moveTo(geo.x0 + c * geo.cell, geo.y0); ctx.lineTo(geo.x0 + c * geo.cell, geo.y0 + geo.H * geo.cell); ctx.stroke();
+  }
+  const options = query ? query.options : [];
+  drawPaths(ctx, geo, options, 0.16);
+  drawStart(ctx, geo, options.length ? options[0][0] : world.start);
+  drawEndLabels(ctx, geo, options);
+}
+
+function drawRisk() {
+  const {ctx, w, h} = setupCanvas($("risk"));
+  const risk = state && state.risk_map;
+  if (!risk) {
+    $("risk-lo").textContent = ""; $("risk-hi").textContent = "";
+    return placeholder(ctx, w, h, "No risk map yet");
+  }
+  const geo = gridGeometry(risk.height, risk.width, w, h);
+  // Colours span this map's own range, so that where Rob is MORE unsure stands out.
+  const known = risk.values.flat().filter((v) => v >= 0);
+  const lo = known.length ? Math.min(...known) : 0, hi = known.length ? Math.max(...known) : 100;
+  $("risk-lo").textContent = `${lo} least unsure`;
+  $("risk-hi").textContent = `${hi} most unsure`;
+  fillGrid(ctx, geo, (r, c) => {
+    const v = risk.values[r][c], t = hi > lo ? (v - lo) / (hi - lo) : 0.5;
+    // White (least unsure) to dark red (most unsure).
+    return v < 0 ? UNKNOWN_COLOR
+      : `rgb(${Math.round(255 - 75 * t)}, ${Math.round(255 - 235 * t)}, ${Math.round(255 - 225 * t)})`;
+  });
+  const query = state.query;
+  if (query && risk.height === (state.world || {}).height && risk.width === (state.world || {}).width) {
+    drawPaths(ctx, geo, query.options, 0.12);
+    drawStart(ctx, geo, query.options[0][0]);
+  }
+  ctx.strokeStyle = "#999"; ctx.lineWidth = 1;
+  ctx.strokeRect(geo.x0 + 0.5, geo.y0 + 0.5, geo.cell * geo.W - 1, geo.cell * geo.H - 1);
+}
+
+function drawLegend() {
+  const legend = $("legend");
+  legend.replaceChildren();
+  const names = state && state.world ? state.world.class_names : Object.keys(TERRAIN_COLORS);
+  for (const name of names) {
+    legend.append(el("span", {class: "chip"}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || UNKNOWN_COLOR}}), name));
+  }
+  legend.append(el("span", {class: "chip"}, el("span", {class: "swatch start"}), "Rob's start"));
+}
+
+// ------------------------------------------------------------------ text
+
+function terrainAt(r, c) {
+  const world = state && state.world;
+  const cls = world && world.classes[r] ? world.classes[r][c] : undefined;
+  return cls === undefined || cls === 255 || cls >= world.class_names.length ? "unknown" : world.class_names[cls];
+}
+
+const terrainSwatch = (name) => el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || UNKNOWN_COLOR}});
+
+// Two lines about a path (its T+1 cells): "ends on <terrain>" and "11 cells: 6 dirt, 5 target",
+// each terrain with its map colour.
+function pathSummary(cells) {
+  if (!state || !state.world) return [el("span", {}), el("small", {})];
+  const counts = new Map();
+  for (const [r, c] of cells) counts.set(terrainAt(r, c), (counts.get(terrainAt(r, c)) || 0) + 1);
+  const [r, c] = cells[cells.length - 1];
+  const end = el("span", {class: "ends"}, "ends on ", terrainSwatch(terrainAt(r, c)), " " + terrainAt(r, c));
+  const parts = el("small", {}, `${cells.length} cells:`);
+  for (const [name, n] of counts) parts.append(el("span", {class: "count"}, terrainSwatch(name), ` ${n} ${name}`));
+  return [end, parts];
+}
+
+function renderOptions() {
+  const box = $("options");
+  box.replaceChildren();
+  const query = state && state.query;
+  if (!query) {
+    box.append(el("p", {class: "sub"}, "No open question. Rob will ask when it is unsure where it is about to drive."));
+    $("gain").textContent = "";
+    return;
+  }
+  const pending = state.pending.includes(query.query_id);
+  query.options.forEach((cells, k) => {
+    const button = el("button", {
+      id: `option-${k}`, class: "option", type: "button", disabled: pending,
+      "data-query-id": String(query.query_id), "data-option": String(k),
+      style: {borderColor: pathColor(k)},
+      onclick: () => sendAnswer(query.query_id, k),
+    },
+    el("span", {class: "swatch big", style: {background: pathColor(k)}}),
+    el("span", {class: "option-text"}, el("strong", {}, `Option ${letter(k)}`),
+      ...pathSummary(cells)));
+    box.append(button);
+  });
+  $("gain").textContent = `Expected information from your answer: ${query.information_gain.toFixed(3)} nats` +
+    (query.strategy ? ` (options chosen by ${query.strategy.replace("_", " ")})` : "");
+}
+
+function renderTitle() {
+  const query = state && state.query;
+  if (query) {
+    const steps = query.options[0].length - 1;
+    $("query-title").textContent = `Question #${query.query_id}: which path do you prefer?`;
+    $("query-sub").textContent = `Every path starts at Rob's start (white circle) and takes ${steps} steps; the framed cell with the letter is where it ends.`;
+  } else {
+    $("query-title").textContent = state && state.world ? "No question right now" : "Waiting for the robot…";
+    $("query-sub").textContent = "The page updates by itself when Rob asks.";
+  }
+}
+
+function renderPosterior() {
+  const table = $("posterior");
+  table.replaceChildren();
+  const post = state && state.posterior;
+  if (!post) { $("posterior-sub").textContent = "No posterior yet."; return; }
+  const scale = Math.max(1e-9, ...post.mean.map((m, i) => Math.abs(m) + post.std[i]));
+  table.append(el("tr", {}, el("th", {}, "terrain"), el("th", {}, "reward (mean ± sd)"), el("th", {}, "")));
+  post.feature_names.forEach((name, i) => {
+    const m = post.mean[i], s = post.std[i];
+    const bar = el("div", {class: "bar-track"},
+      el("div", {class: "bar-sd", style: {left: `${50 + 50 * (m - s) / scale}%`, width: `${100 * s / scale}%`}}),
+      el("div", {class: "bar-mean " + (m >= 0 ? "pos" : "neg"), style: m >= 0
+        ? {left: "50%", width: `${50 * m / scale}%`} : {left: `${50 + 50 * m / scale}%`, width: `${-50 * m / scale}%`}}));
+    table.append(el("tr", {},
+      el("td", {}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || "#ddd"}}), " " + name),
+      el("td", {class: "num"}, `${m >= 0 ? "+" : "−"}${Math.abs(m).toFixed(2)} ± ${s.toFixed(2)}`),
+      el("td", {class: "bar-cell"}, bar)));
+  });
+  const answers = post.num_answers === 1 ? "1 answer" : `${post.num_answers} answers`;
+  $("posterior-sub").textContent = `From the designer's proxy reward and ${answers}; ${post.num_samples} samples (${post.method})` +
+    (post.converged === false ? " — sampler NOT converged" : "");
+}
+
+function renderHistory() {
+  const body = $("history").querySelector("tbody");
+  body.replaceChildren();
+  const rows = state ? state.history : [];
+  if (!rows.length) {
+    body.append(el("tr", {}, el("td", {colSpan: 5, class: "sub"}, "No answers yet.")));
+    return;
+  }
+  for (const rec of rows.slice().reverse()) {
+    const opts = el("td", {});
+    rec.options.forEach((_, k) => opts.append(el("span", {class: "tag", style: {background: pathColor(k)}}, letter(k))));
+    body.append(el("tr", {id: `history-${rec.query_id}`, "data-query-id": String(rec.query_id)},
+      el("td", {}, `#${rec.query_id}`),
+      opts,
+      el("td", {class: "num"}, `${rec.information_gain.toFixed(3)} nats`),
+      el("td", {}, el("span", {class: "tag", style: {background: pathColor(rec.chosen)}}, letter(rec.chosen)), ` Option ${letter(rec.chosen)}`),
+      el("td", {}, rec.answered_by || "")));
+  }
+}
+
+let shownQueryId = null;
+
+function render(newState) {
+  const queryId = newState.query ? newState.query.query_id : null;
+  // A new question starts with a clean slate: the previous answer's message goes away.
+  if (queryId !== null && queryId !== shownQueryId && !$("message").classList.contains("info")) {
+    $("message").className = "message hidden";
+  }
+  shownQueryId = queryId;
+  state = newState;
+  document.body.dataset.version = String(state.version);
+  renderTitle();
+  drawMap();
+  drawLegend();
+  renderOptions();
+  drawRisk();
+  renderPosterior();
+  renderHistory();
+}
+
+// ------------------------------------------------------------------ server
+
+async function sendAnswer(queryId, chosen) {
+  document.querySelectorAll("button.option").forEach((b) => { b.disabled = true; });
+  showMessage(`Sending Option ${letter(chosen)} for question #${queryId}… Rob is updating its beliefs (this can take a few seconds).`, "info");
+  try {
+    const response = await fetch("/answer", {
+      method: "POST", headers: {"Content-Type": "application/json"},
+      body: JSON.stringify({query_id: queryId, chosen: chosen}),
+    });
+    const reply = await response.json();
+    showMessage(reply.ok ? `Thank you: Option ${letter(chosen)} recorded for question #${queryId}. ${reply.message}`
+      : `Not recorded: ${reply.message}`, reply.ok ? "ok" : "error");
+  } catch (err) {
+    showMessage(`Not recorded: the server could not be reached (${err}).`, "error");
+  }
+  if (state) renderOptions();
+}
+
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  socket = new WebSocket(`${scheme}://${location.host}/ws`);
+  socket.onopen = () => { $("connection").textContent = "live"; $("connection").className = "connection online"; };
+  socket.onmessage = (event) => render(JSON.parse(event.data));
+  socket.onclose = () => {
+    $("connection").textContent = "reconnecting…"; $("connection").className = "connection offline";
+    setTimeout(connect, 1000);
+  };
+}
+
+fetch("/state").then((r) => r.json()).then(render).catch(() => {});
+connect();

@@ -1,0 +1,212 @@
+"""The demo's rounds of questions as data, text and a picture (no ROS; used by scripts/demo.py).
+
+- :class:`Outcome`: what Rob reported at the end of one plan (plus whether the path holds gold).
+- :class:`RoundResult`: one question to the designer, its answer, and the plan Rob drove after it.
+- :func:`terrain_counts`: cells of each terrain on each option path (what an option "is").
+- :func:`rounds_table`: the text table of the literal plan, the IRD plan and every round.
+- :func:`save_rounds_figure`: the picture: one column per stage (before the questions, then each
+  round), the test map with the plans and the options asked on top, the risk map below.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from ird_core.render import TERRAIN_COLORS, draw_path, draw_terrain
+from ird_core.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
+
+__all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "save_rounds_figure",
+           "PANEL_INCHES"]
+
+PANEL_INCHES = 3.2
+_DPI = 100
+_LITERAL_COLOR, _PLAN_COLOR = "#ff00ff", "#1f3fff"
+# Options by role, visible on every terrain colour and apart from the plans' blue and magenta.
+_CHOSEN_COLOR, _OTHER_COLOR = "#ffffff", "#000000"
+# Terrains an option is described by, in the order of the text.
+_DESCRIBED = (Terrain.LAVA, Terrain.GOLD, Terrain.TARGET)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What Rob reported at the end of one plan; ``reached_gold`` from the world's terrain."""
+
+    label: str
+    cells: list[tuple[int, int]]
+    objective: float
+    touched_lava: bool
+    reached_target: bool
+    true_return: float
+    reached_gold: bool = False
+
+
+@dataclass(frozen=True)
+class RoundResult:
+    """One question: the options (q arrays of (T+1, 2) cells), the answer, the plan after it.
+
+    ``risk_map`` is the planner's (H, W) risk map (0..100) of the posterior given the answer;
+    ``option_counts`` (q, NUM_TERRAINS) the cells of each terrain on each option."""
+
+    index: int
+    query_id: int
+    information_gain: float
+    options: tuple[np.ndarray, ...]
+    chosen: int
+    answered_by: str
+    plan: Outcome
+    option_counts: np.ndarray
+    risk_map: np.ndarray | None = field(default=None, compare=False)
+
+
+def terrain_counts(labels: np.ndarray, options: Sequence[np.ndarray]) -> np.ndarray:
+    """(q, NUM_TERRAINS) int: how many cells of each terrain each option path visits (every cell
+    counts, revisits too, like ``lavaland.true_return``).
+
+    Args:
+        labels: (H, W) Terrain labels.
+        options: q (T+1, 2) (row, col) cell arrays (equal lengths).
+    Raises:
+        ValueError: ``options`` with a cell off the map or of unequal lengths.
+    """
+    labels = np.asarray(labels)
+    try:
+        cells = np.asarray(options, dtype=np.int64)
+    except ValueError:
+        raise ValueError("options: expected q paths of (row, col) cells of equal length") from None
+    if cells.ndim != 3 or cells.shape[2] != 2:
+        raise ValueError(f"options: expected q paths of (row, col) cells of equal length, got shape {cells.shape}")
+    h, w = labels.shape
+    if np.any(cells < 0) or np.any(cells[..., 0] >= h) or np.any(cells[..., 1] >= w):
+        raise ValueError(f"options: a cell lies off the {h}x{w} map")
+    on_path = labels[cells[..., 0], cells[..., 1]]  # (q, T+1)
+    return (on_path[..., None] == np.arange(NUM_TERRAINS)).sum(axis=1)
+
+
+def describe_counts(counts: np.ndarray) -> str:
+    """``"lava 0, gold 2, target 3"``: the cells of lava, gold and target of one option."""
+    return ", ".join(f"{TERRAIN_NAMES[t]} {int(counts[t])}" for t in _DESCRIBED)
+
+
+def _yes(flag: bool) -> str:
+    return "yes" if flag else "no"
+
+
+def rounds_table(literal: Outcome, before: Outcome, rounds: Sequence[RoundResult]) -> str:
+    """One line per plan Rob drove: the literal plan, the IRD plan before any question, then per
+    round the question (information gain in nats), the answer (the chosen option's lava, gold and
+    target cells) and the outcome of the plan after it."""
+    head = (f"  {'plan':<22} {'info gain':>9}  {'answer':<34} {'lava':>4} {'target':>6} {'gold':>4} "
+            f"{'true return':>11}")
+    rows = [head]
+
+    def row(label: str, gain: str, answer: str, o: Outcome) -> str:
+        return (f"  {label:<22} {gain:>9}  {answer:<34} {_yes(o.touched_lava):>4} {_yes(o.reached_target):>6} "
+                f"{_yes(o.reached_gold):>4} {o.true_return:>11.2f}")
+
+    rows.append(row("literal (proxy)", "-", "-", literal))
+    rows.append(row("IRD, no questions", "-", "-", before))
+    for r in rounds:
+        answer = f"{r.chosen} of {len(r.options)} ({describe_counts(r.option_counts[r.chosen])})"
+        rows.append(row(f"IRD after round {r.index}", f"{r.information_gain:.3f}", answer, r.plan))
+    return "\n".join(rows)
+
+
+def _outcome_text(o: Outcome) -> str:
+    parts = ["LAVA" if o.touched_lava else "no lava", "target" if o.reached_target else "no target"]
+    if o.reached_gold:
+        parts.append("GOLD")
+    return f"{', '.join(parts)}; return {o.true_return:.1f}"
+
+
+def _draw_map(ax, labels: np.ndarray, start: tuple[int, int]) -> None:
+    draw_terrain(ax, labels, start)
+    ax.get_legend().remove()  # one terrain legend for the whole figure
+
+
+def _draw_risk(ax, risk: np.ndarray | None):
+    if risk is None:
+        ax.axis("off")
+        return None
+    image = ax.imshow(np.asarray(risk, dtype=float), cmap="inferno", vmin=0, vmax=100, origin="lower",
+                      interpolation="nearest")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    return image
+
+
+def save_rounds_figure(
+    path: "str | os.PathLike[str]",
+    test_labels: np.ndarray,
+    test_start: tuple[int, int],
+    literal: Outcome,
+    before: Outcome,
+    risk_before: np.ndarray | None,
+    rounds: Sequence[RoundResult],
+    title: str,
+) -> tuple[int, int]:
+    """Write the PNG; returns its (width, height) in pixels.
+
+    Columns: "before the questions" (the literal plan and the IRD plan), then one per round (the
+    options asked: the chosen one solid white, the others dashed black; the plan Rob drove after the
+    answer in blue). Top row on the test map (row 0 at the bottom), bottom row the planner's risk
+    map of the posterior at that stage (the spread of each cell's reward over the samples, 100 =
+    that map's largest spread, so each map is relative to itself).
+    """
+    ncols = 1 + len(rounds)
+    width_in, height_in = PANEL_INCHES * ncols + 1.0, 2 * PANEL_INCHES + 1.9
+    fig = Figure(figsize=(width_in, height_in), dpi=_DPI)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, ncols, squeeze=False)
+    fig.suptitle(title, fontsize=11, y=1.0 - 0.12 / height_in, va="top")
+
+    top = axes[0, 0]
+    _draw_map(top, test_labels, test_start)
+    draw_path(top, literal.cells, "literal", _LITERAL_COLOR, -0.12)
+    draw_path(top, before.cells, "IRD", _PLAN_COLOR, 0.12)
+    top.set_title("before the questions", fontsize=9)
+    top.set_xlabel(f"literal: {_outcome_text(literal)}\nIRD: {_outcome_text(before)}", fontsize=7)
+    image = _draw_risk(axes[1, 0], risk_before)
+    axes[1, 0].set_title("risk map, proxy only", fontsize=8)
+
+    for col, r in enumerate(rounds, start=1):
+        ax = axes[0, col]
+        _draw_map(ax, test_labels, test_start)
+        q = len(r.options)
+        for k, cells in enumerate(r.options):
+            offset = (k - (q - 1) / 2) * 0.16
+            chosen = k == r.chosen
+            ax.plot(cells[:, 1] + offset, cells[:, 0] + offset, "-" if chosen else "--",
+                    color=_CHOSEN_COLOR if chosen else _OTHER_COLOR, lw=3.0 if chosen else 1.5, alpha=0.95)
+        draw_path(ax, r.plan.cells, "plan", _PLAN_COLOR, 0.0)
+        ax.set_title(f"round {r.index}: gain {r.information_gain:.2f} nats\n"
+                     f"chose {r.chosen} ({describe_counts(r.option_counts[r.chosen])})", fontsize=8)
+        ax.set_xlabel(f"plan: {_outcome_text(r.plan)}", fontsize=7)
+        ax.set_ylabel("")
+        image = _draw_risk(axes[1, col], r.risk_map) or image
+        axes[1, col].set_title(f"risk map after {r.index} answer{'s' if r.index > 1 else ''}", fontsize=8)
+
+    handles: list = [Patch(facecolor=TERRAIN_COLORS[t], edgecolor="black", label=TERRAIN_NAMES[t])
+                     for t in range(NUM_TERRAINS) if np.any(np.asarray(test_labels) == t)]
+    handles += [Line2D([], [], color=_LITERAL_COLOR, lw=1.8, label="literal plan"),
+                Line2D([], [], color=_PLAN_COLOR, lw=1.8, label="IRD plan (Rob drove it)")]
+    if rounds:
+        handles += [Line2D([], [], color="#c8c8c8", lw=3.0, label="option the designer chose (white)"),
+                    Line2D([], [], color=_OTHER_COLOR, lw=1.5, ls="--", label="option not chosen")]
+    handles.append(Line2D([], [], marker="o", color="black", mfc="white", ls="none", label="start"))
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 5), fontsize=7, frameon=False)
+    bottom = 0.65 / height_in
+    fig.subplots_adjust(left=0.5 / width_in, right=1.0 - 0.9 / width_in, bottom=bottom,
+                        top=1.0 - 0.95 / height_in, wspace=0.25, hspace=0.5)
+    if image is not None:  # one colour bar beside the risk row
+        bar_ax = fig.add_axes((1.0 - 0.78 / width_in, bottom + 0.02, 0.12 / width_in, 0.34))
+        fig.colorbar(image, cax=bar_ax, label="risk (100 = the map's largest spread)")
+    fig.savefig(path, dpi=_DPI)
+    return int(round(width_in * _DPI)), int(round(height_in * _DPI))

@@ -1,0 +1,214 @@
+"""A person answers the robot's question in a real browser, over the real graph.
+
+World, perception, inference, planner and the designer node in web mode run as processes in a
+private ROS domain; the test asks a question through /ird/query, headless Chromium (Debian's
+package, driven by Selenium through Debian's chromedriver: nothing is downloaded) loads the
+page, sees the options, clicks one, and the test sees the new posterior on /ird/posterior and
+the answer in the page's history. It saves the page as out/designer_web.png.
+
+A missing browser or driver fails the test (apt-get install -y chromium chromium-driver).
+"""
+
+from __future__ import annotations
+
+import socket
+import tempfile
+from pathlib import Path
+from typing import Any, Iterator
+
+import pytest
+import yaml
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+REPO = Path(__file__).resolve().parents[2]
+CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+SCREENSHOT = REPO / "out" / "designer_web.png"
+SIZE, HORIZON, SEED = 8, 10, 3
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync", "--window-size=1280,1000")
+WAIT = 60.0  # seconds a page condition may take (the page updates on WebSocket pushes)
+
+
+def free_port() -> int:
+    """A loopback port free right now (the node must know it before it starts)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[webdriver.Chrome]:
+    for path in (CHROMIUM, CHROMEDRIVER):
+        assert path.is_file(), f"{path} is missing: apt-get install -y chromium chromium-driver"
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in CHROMIUM_FLAGS:
+        options.add_argument(flag)
+    options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
+    # The explicit driver path keeps Selenium Manager from looking for (downloading) a driver.
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+@pytest.fixture(scope="module")
+def graph(ros_domain: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+    from ird_ros.testing import running_nodes
+
+    tmp = tmp_path_factory.mktemp("designer_web")
+    params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
+    params["world"]["ros__parameters"].update(condition="side_effects", seed=SEED, height=SIZE, width=SIZE,
+                                              horizon=HORIZON)
+    params["inference"]["ros__parameters"].update(num_chains=4)
+    port = free_port()
+    params["designer"]["ros__parameters"].update(mode="web", host="127.0.0.1", port=port)
+    params_file = tmp / "graph.yaml"
+    params_file.write_text(yaml.safe_dump(params))
+    nodes = [(name, ["-m", f"ird_ros.{name}", "--ros-args", "--params-file", str(params_file)])
+             for name in ("world", "perception", "inference", "planner", "designer")]
+    with running_nodes(ros_domain, *nodes) as procs:
+        designer = procs[-1]
+        line = designer.wait_for_output("designer web page at", timeout=60.0)
+        url = f"http://127.0.0.1:{port}/"
+        assert url in line, line
+        yield {"url": url, "procs": procs}
+
+
+class Probe:
+    """The test's ROS side: the latched posterior, risk map and query history, and the services."""
+
+    def __init__(self, ctx: Any, procs: list[Any]) -> None:
+        import rclpy
+        from ird_msgs.msg import QueryRecord, RewardPosterior
+        from nav_msgs.msg import OccupancyGrid
+
+        from ird_ros import names
+
+        self.procs = procs
+        self.node = rclpy.create_node("designer_web_probe", context=ctx)
+        self.posteriors: list[Any] = []
+        self.risk_maps: list[Any] = []
+        self.records: list[Any] = []
+        self.node.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self.posteriors.append,
+                                      names.latched_qos())
+        self.node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self.risk_maps.append, names.latched_qos())
+        self.node.create_subscription(QueryRecord, names.TOPIC_QUERIES, self.records.append, names.history_qos())
+
+    def until(self, condition: Any, what: str, timeout: float = 120.0) -> None:
+        from ird_ros.testing import spin_until
+
+        spin_until(self.node, condition, timeout=timeout, what=what, processes=self.procs)
+
+    def call(self, srv_type: Any, name: str, request: Any, timeout: float = 300.0) -> Any:
+        from ird_ros.testing import call_service
+
+        response = call_service(self.node, self.node.create_client(srv_type, name), request, timeout=timeout,
+                                processes=self.procs)
+        assert response.success, response.message
+        return response
+
+
+def infer_first_posterior(probe: Probe) -> Any:
+    """The proxy's posterior (/ird/infer), which the questions start from; returns the proxy."""
+    from ird_msgs.msg import FeatureGrid, ProxyReward
+    from ird_msgs.srv import InferReward
+
+    from ird_ros import names
+    from ird_ros.testing import receive_messages
+
+    proxy = receive_messages(probe.node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
+    train = receive_messages(probe.node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
+    req = InferReward.Request()
+    req.training_map = train
+    req.start_row, req.start_col, req.horizon = proxy.start_row, proxy.start_col, proxy.horizon
+    req.proxy_weights = list(proxy.weights)
+    req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 100, 11
+    probe.call(InferReward, names.SRV_INFER, req)
+    return proxy
+
+
+def ask(probe: Probe, proxy: Any, seed: int) -> Any:
+    from ird_msgs.srv import ProposeQuery
+
+    from ird_ros import names
+
+    req = ProposeQuery.Request()
+    req.start_row, req.start_col, req.horizon = proxy.test_start_row, proxy.test_start_col, proxy.test_horizon
+    req.num_options, req.strategy, req.seed = 2, "info_gain", seed
+    return probe.call(ProposeQuery, names.SRV_QUERY, req)
+
+
+def shown_query(driver: webdriver.Chrome, query_id: int) -> list[Any]:
+    """The option buttons once the page shows question ``query_id``."""
+    WebDriverWait(driver, WAIT).until(
+        lambda d: d.find_elements(By.CSS_SELECTOR, f'button.option[data-query-id="{query_id}"]'),
+        f"the page never showed question {query_id}")
+    return driver.find_elements(By.CSS_SELECTOR, "button.option")
+
+
+def message_text(driver: webdriver.Chrome, words: str) -> str:
+    WebDriverWait(driver, WAIT).until(lambda d: words in d.find_element(By.ID, "message").text,
+                                      f"the page's message never said {words!r}")
+    return driver.find_element(By.ID, "message").text
+
+
+def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver.Chrome, ros_ctx: Any) -> None:
+    probe = Probe(ros_ctx, graph["procs"])
+    try:
+        proxy = infer_first_posterior(probe)
+        probe.until(lambda: probe.posteriors and probe.risk_maps, "the first posterior and the planner's risk map")
+        query = ask(probe, proxy, seed=1)
+
+        browser.get(graph["url"])
+        buttons = shown_query(browser, query.query_id)
+        assert [b.text.splitlines()[0] for b in buttons] == ["Option A", "Option B"]
+        assert len(buttons) == len(query.options)
+        assert "Question #%d" % query.query_id in browser.find_element(By.ID, "query-title").text
+
+        # The person clicks Option B; the answer reaches /ird/answer and a new posterior follows.
+        seen = len(probe.posteriors)
+        buttons[1].click()
+        probe.until(lambda: len(probe.posteriors) > seen, "the posterior after the web answer")
+        probe.until(lambda: any(r.query_id == query.query_id and r.chosen == 1 and r.answered_by == "web"
+                                for r in probe.records), "the answered record on /ird/queries")
+        assert "Thank you" in message_text(browser, "Thank you")
+        WebDriverWait(browser, WAIT).until(lambda d: d.find_elements(By.ID, f"history-{query.query_id}"),
+                                           "the answer never appeared in the page's history")
+        row = browser.find_element(By.ID, f"history-{query.query_id}").text
+        assert "Option B" in row and "web" in row
+        # The page shows the posterior that followed the answer (pushed, no reload).
+        stamp = probe.posteriors[-1].header.stamp
+        stamp_s = stamp.sec + stamp.nanosec * 1e-9
+        WebDriverWait(browser, WAIT).until(
+            lambda d: abs((d.execute_script("return state.posterior && state.posterior.stamp") or 0) - stamp_s) < 1e-6,
+            "the page never showed the new posterior")
+
+        # A stale click (the same question again, as a double click or an old tab would send)
+        # is refused on the page and changes nothing.
+        answered = len([r for r in probe.records if r.event == "answered"])
+        browser.execute_script("sendAnswer(arguments[0], 0);", query.query_id)
+        assert "already answered" in message_text(browser, "Not recorded")
+        browser.execute_script("sendAnswer(arguments[0], 0);", query.query_id + 1000)
+        assert "unknown query" in message_text(browser, "unknown query")
+        probe.until(lambda: True, "a spin")
+        assert len([r for r in probe.records if r.event == "answered"]) == answered
+
+        # The next question, for the picture: map, options, risk map, belief and history at once.
+        second = ask(probe, proxy, seed=2)
+        shown_query(browser, second.query_id)
+        assert "hidden" in browser.find_element(By.ID, "message").get_attribute("class")
+        # The whole page in one picture: a viewport as tall as the page.
+        height = int(browser.execute_script("return document.documentElement.scrollHeight"))
+        browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                                {"width": 1280, "height": height, "deviceScaleFactor": 1, "mobile": False})
+        shown_query(browser, second.query_id)
+        SCREENSHOT.parent.mkdir(exist_ok=True)
+        assert browser.save_screenshot(str(SCREENSHOT)), "screenshot failed"
+    finally:
+        probe.node.destroy_node()

@@ -1,0 +1,154 @@
+"""The planner's limits over real DDS (IRD spec section 8): sizes refused before work starts with
+the field and the limit named, out-of-range numbers named, a trajectory plan bounded by
+``time_limit`` and answered as a fallback, and a short plan never waiting behind a long one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import pytest
+
+import rclpy
+from ird_core import lavaland, planning
+from ird_core.mdp import GridMDP
+from ird_msgs.srv import PlanPath
+from ird_ros import conversions as conv
+from ird_ros import names
+from ird_ros.offload import service_qos
+from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+
+ROOT = Path(__file__).resolve().parents[2]
+PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
+TIME_LIMIT = 3.0
+
+
+@pytest.fixture(scope="module")
+def planner(ros_domain: DomainLease) -> Iterator[NodeProcess]:
+    args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS, "-p", f"time_limit:={TIME_LIMIT}"]
+    with spawn_node_process(args, domain=ros_domain, name="planner", ready_text="planner ready") as proc:
+        yield proc
+    assert proc.returncode == 0, proc.describe()
+
+
+@pytest.fixture(scope="module")
+def client(ros_ctx: Any, planner: NodeProcess) -> Iterator[tuple[Any, Any]]:
+    node = rclpy.create_node("limits_client", context=ros_ctx)
+    cli = node.create_client(PlanPath, names.SRV_PLAN, qos_profile=service_qos())
+    wait_for_service(node, cli, processes=[planner], timeout=30.0)
+    yield node, cli
+    node.destroy_node()
+
+
+def _request(features: np.ndarray, layers: tuple[str, ...], start: tuple[int, int], horizon: int,
+             weights: np.ndarray, mode: str, baseline: str = "none") -> PlanPath.Request:
+    req = PlanPath.Request()
+    req.map = conv.feature_grid_to_msg(features, layers)
+    req.start_row, req.start_col = start
+    req.horizon = horizon
+    req.mode, req.baseline = mode, baseline
+    req.weights = np.asarray(weights, dtype=np.float64).reshape(-1).tolist()
+    return req
+
+
+@pytest.fixture(scope="module")
+def small() -> lavaland.LavalandInstance:
+    return lavaland.make_instance("side_effects", 3, size=5, horizon=6)
+
+
+def _call(client: tuple[Any, Any], planner: NodeProcess, req: PlanPath.Request) -> PlanPath.Response:
+    node, cli = client
+    return call_service(node, cli, req, timeout=60.0, processes=[planner])
+
+
+def test_plan_work_is_refused_before_it_starts(client: Any, planner: NodeProcess,
+                                               small: lavaland.LavalandInstance) -> None:
+    d = small.test_features.shape[2]
+    weights = np.random.default_rng(0).normal(size=(200_000, d))
+    req = _request(small.test_features, small.feature_names, small.test_start, 1000, weights, "per_step")
+    response = _call(client, planner, req)
+    assert not response.success
+    assert response.message.startswith("weights: 200000 samples x horizon 1000"), response.message
+    assert "max_plan_work=5e+07" in response.message
+
+
+@pytest.mark.parametrize("weights,mode", [([1e308] * 4, "per_step"), ([1e308, -1e308, 1e308, -1e308], "literal"),
+                                          ([2e4, 0.0, 0.0, 0.0], "trajectory")])
+def test_out_of_range_weights_are_named(client: Any, planner: NodeProcess, small: lavaland.LavalandInstance,
+                                        weights: list[float], mode: str) -> None:
+    req = _request(small.test_features, small.feature_names, small.test_start, 6, np.array(weights), mode)
+    response = _call(client, planner, req)
+    assert not response.success
+    assert response.message.startswith("weights: a value of magnitude"), response.message
+
+
+def test_huge_map_values_are_named(client: Any, planner: NodeProcess, small: lavaland.LavalandInstance) -> None:
+    req = _request(np.full((5, 5, 4), 1e30), small.feature_names, (0, 0), 6, np.ones(4), "literal")
+    response = _call(client, planner, req)
+    assert not response.success and response.message.startswith("map.data: a value of magnitude 1e+30")
+
+
+def test_long_trajectory_does_not_delay_a_per_step_plan(client: Any, planner: NodeProcess) -> None:
+    node, cli = client
+    inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
+    weights = np.random.default_rng(0).normal(size=(16, inst.test_features.shape[2]))
+    # The reliability report's slow case (log_z: no proof within the time limit on the core).
+    long_req = _request(inst.test_features, inst.feature_names, inst.test_start, 30, weights, "trajectory", "log_z")
+    short_req = _request(inst.test_features, inst.feature_names, inst.test_start, 30, weights, "per_step", "log_z")
+    order: list[str] = []
+    long_future = cli.call_async(long_req)
+    long_future.add_done_callback(lambda _: order.append("trajectory"))
+    short_future = cli.call_async(short_req)
+    short_future.add_done_callback(lambda _: order.append("per_step"))
+    spin_until(node, lambda: len(order) == 2, timeout=120.0, what="both plans", processes=[planner])
+    assert order == ["per_step", "trajectory"]
+    short, long = short_future.result(), long_future.result()
+    assert short.success, short.message
+    assert long.success, long.message
+    mdp = GridMDP(inst.test_features.astype(np.float32).astype(np.float64), inst.test_start, 30)
+    cells = list(zip(long.rows, long.cols))
+    # Whatever the solver reached, the objective reported is the path's exact objective.
+    assert long.objective == pytest.approx(planning.path_objective(mdp, cells, weights, "trajectory", "log_z"),
+                                           rel=1e-9, abs=1e-9)
+    if "FALLBACK" in long.message:
+        assert f"time_limit: {TIME_LIMIT} s passed" in long.message
+    print(long.message)
+
+
+def _allocate(megabytes: int) -> int:
+    return int(np.ones(megabytes * 2**20 // 8).sum())
+
+
+def test_worker_memory_limit_fails_the_job_not_the_pool() -> None:
+    from ird_ros.node_main import WorkerPool
+
+    pool = WorkerPool(1, warm_modules=("numpy",), memory_limit=1024 * 2**20)
+    try:
+        with pytest.raises(MemoryError):
+            pool.submit_concurrent(_allocate, 2048).result(timeout=60.0)
+        # The same worker (not a replacement) computes the next job within the limit.
+        assert pool.submit_concurrent(_allocate, 64).result(timeout=60.0) == 64 * 2**20 // 8
+    finally:
+        pool.shutdown()
+
+
+def test_empty_condition_keeps_the_current_one(ros_domain: DomainLease, ros_ctx: Any) -> None:
+    from ird_msgs.srv import GenerateWorld
+
+    args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=reward_hacking",
+            "-p", "height:=5", "-p", "width:=5", "-p", "horizon:=4"]
+    with spawn_node_process(args, domain=ros_domain, name="world", ready_text="world ready") as world:
+        node = rclpy.create_node("limits_world_client", context=ros_ctx)
+        try:
+            cli = node.create_client(GenerateWorld, names.SRV_GENERATE, qos_profile=service_qos())
+            response = call_service(node, cli, GenerateWorld.Request(condition="", seed=5), processes=[world])
+        finally:
+            node.destroy_node()
+    assert response.success and response.message.startswith("generated reward_hacking seed 5"), response.message
+
+
+def test_map_size_is_refused_by_name(client: Any, planner: NodeProcess) -> None:
+    req = _request(np.zeros((1000, 1000, 6)), tuple(f"f{i}" for i in range(6)), (0, 0), 1, np.ones(6), "literal")
+    response = _call(client, planner, req)
+    assert not response.success and response.message == "map.data: 6000000 values exceed max_map_values=5000000"

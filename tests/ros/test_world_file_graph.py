@@ -1,0 +1,196 @@
+"""The whole graph launched with a shipped world file (worlds/figure1.yaml), over real DDS.
+
+The world node publishes the file's maps (not a generated Lavaland); the /ird/infer request
+the world poses (/world/infer_request) gives the joint posterior over its training worlds; the
+IRD per_step plan equals ird_core's plan_path on the published test map; Rob drives it, and
+the executed path never touches the file's lava (the shortcut the designer never saw).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ird_core import lavaland, planning, world_file
+from ird_core.mdp import GridMDP
+from ird_core.terrain import Terrain
+
+REPO = Path(__file__).resolve().parents[2]
+WORLD = REPO / "worlds" / "figure1.yaml"
+
+
+@pytest.fixture(scope="module")
+def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    import rclpy
+    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus, TerrainGrid
+    from ird_msgs.srv import InferReward, PlanPath
+    from nav_msgs.msg import OccupancyGrid
+
+    from ird_ros import conversions as conv
+    from ird_ros import names
+    from ird_ros.launcher import GraphLauncher, graph_specs
+    from ird_ros.testing import call_service, receive_messages, ros_context, spin_until, wait_for_publishers
+    from ird_ros.world import TOPIC_INFER_REQUEST, with_world_file
+
+    tmp = tmp_path_factory.mktemp("world_file")
+    params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
+    params["rob"]["ros__parameters"]["rate_hz"] = 50.0
+    params_file = tmp / "graph.yaml"
+    params_file.write_text(yaml.safe_dump(params))
+    out: dict = {"wf": world_file.load_world_file(WORLD)}
+    specs = with_world_file(graph_specs(optional=True), WORLD)
+    with GraphLauncher(specs=specs, params=params_file, private_domain=True, output="quiet",
+                       log_dir=tmp / "logs") as graph:
+        graph.wait_ready(timeout=120)
+        with ros_context(graph.domain_id) as ctx:
+            node = rclpy.create_node("world_file_client", context=ctx)
+            try:
+                status: list = []
+                sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
+                wait_for_publishers(node, sub, timeout=60)
+                proxy = receive_messages(node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
+                out["proxy"] = proxy
+                out["train"] = receive_messages(node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
+                out["test"] = receive_messages(node, FeatureGrid, names.TOPIC_TEST_FEATURES, timeout=60)[-1]
+                out["terrain"] = receive_messages(node, TerrainGrid, names.TOPIC_TERRAIN, timeout=60)[-1]
+                out["classes"] = receive_messages(node, TerrainGrid, names.TOPIC_TERRAIN_CLASSES, timeout=60)[-1]
+                req = receive_messages(node, InferReward.Request, TOPIC_INFER_REQUEST, timeout=60)[-1]
+                out["request"] = req
+                req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 40, 11
+                res = call_service(node, node.create_client(InferReward, names.SRV_INFER), req, timeout=300)
+                assert res.success, res.message
+                out["posterior"] = conv.posterior_from_msg(res.posterior)
+                # The planner holds the posterior and the test map once its risk map is out.
+                receive_messages(node, OccupancyGrid, names.TOPIC_RISK_MAP, timeout=60)
+
+                inst = out["wf"].instance
+                reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+                plan_req = PlanPath.Request()
+                plan_req.start_row, plan_req.start_col = proxy.test_start_row, proxy.test_start_col
+                plan_req.horizon = proxy.test_horizon
+                plan_req.mode, plan_req.baseline, plan_req.label = "per_step", "training_features", "ird"
+                plan_req.weights = list(res.posterior.samples)
+                plan_req.reference_features = list(reference)
+                plan = call_service(node, node.create_client(PlanPath, names.SRV_PLAN), plan_req, timeout=120)
+                assert plan.success, plan.message
+                out["plan_cells"] = list(zip(plan.rows, plan.cols))
+                out["reference"] = reference
+                stamp = plan.path.header.stamp
+                spin_until(node, lambda: any(s.done and s.plan_stamp == stamp for s in status), timeout=60,
+                           what="Rob finishing the plan")
+                out["final"] = [s for s in status if s.done and s.plan_stamp == stamp][-1]
+                out["statuses"] = [s for s in status if s.plan_stamp == stamp]
+            finally:
+                node.destroy_node()
+    return out
+
+
+def test_world_publishes_the_files_maps(mission: dict) -> None:
+    from ird_ros import conversions as conv
+
+    wf = mission["wf"]
+    inst = wf.instance
+    proxy = mission["proxy"]
+    assert proxy.condition == lavaland.FILE_CONDITION and proxy.seed == inst.seed
+    for key, values in (("train", inst.train_features), ("test", inst.test_features)):
+        grid = conv.feature_grid_from_msg(mission[key])
+        assert grid.layers == inst.feature_names == ("dirt", "grass", "target", "lava")
+        assert np.array_equal(grid.features, values.astype(np.float32)), key
+        assert grid.resolution == wf.resolution and grid.origin == wf.origin[:2]
+    terrain = conv.terrain_grid_from_msg(mission["terrain"])
+    assert terrain.class_names == inst.terrain_names
+    assert np.array_equal(terrain.classes, inst.test_labels.astype(np.uint8))
+    assert np.any(inst.test_labels == Terrain.LAVA) and not np.any(inst.train_labels == Terrain.LAVA)
+    assert tuple(proxy.terrain_names) == inst.terrain_names
+    assert np.array_equal(np.asarray(proxy.true_terrain_rewards), inst.true_terrain_reward)
+    assert np.array_equal(np.asarray(proxy.weights), inst.proxy_weights)
+    assert (proxy.start_row, proxy.start_col, proxy.horizon) == (*inst.train_start, inst.train_horizon)
+    assert (proxy.test_start_row, proxy.test_start_col, proxy.test_horizon) == (*inst.test_start, inst.test_horizon)
+    req = mission["request"]
+    assert np.array_equal(conv.feature_grid_from_msg(req.training_map).features, inst.train_features.astype(np.float32))
+    assert (req.start_row, req.start_col, req.horizon) == (*inst.train_start, inst.train_horizon)
+    assert len(req.training_worlds) == len(inst.extra_training_worlds) == 0
+    # Perception on indicator features: the layers are the classes.
+    classes = conv.terrain_grid_from_msg(mission["classes"])
+    assert classes.class_names == inst.feature_names
+    assert np.array_equal(classes.classes, inst.test_labels.astype(np.uint8))
+
+
+def test_rob_drives_the_ird_plan_and_avoids_the_lava(mission: dict) -> None:
+    inst = mission["wf"].instance
+    test_mdp = GridMDP(inst.test_features.astype(np.float32).astype(np.float64), inst.test_start,
+                       inst.test_horizon)
+    expected = planning.plan_path(test_mdp, mission["posterior"].samples, "per_step",
+                                  "training_features", mission["reference"])
+    cells = mission["plan_cells"]
+    assert tuple(cells) == tuple(expected.cells)
+    assert [(s.row, s.col) for s in mission["statuses"]] == cells
+    final = mission["final"]
+    assert final.step == inst.test_horizon and (final.row, final.col) == cells[-1]
+    assert not lavaland.touches_lava(inst.test_labels, cells)
+    assert not final.touched_lava
+    assert final.true_return == pytest.approx(lavaland.true_return(inst.test_labels, cells, inst.true_terrain_reward))
+
+
+@pytest.mark.parametrize("condition", ["latent_classifier", "latent_raw"])
+def test_perception_classifies_a_gaussian_file_world(condition: str, tmp_path: Path) -> None:
+    """A Gaussian file world (an exported latent instance): perception, given the same
+    world_file, uses the file's classifier (latent_classifier: /terrain/features = the proxy's
+    features) or one fitted on the file's observation model (seed instance.seed)."""
+    import rclpy
+    from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
+
+    from ird_core.observations import fit_classifier
+    from ird_ros import conversions as conv
+    from ird_ros import names
+    from ird_ros.testing import lease_domain, ros_context, running_nodes, spin_until
+
+    generated = lavaland.make_instance(condition, 5, size=(6, 7), horizon=8, obs_dim=8)
+    path = world_file.export_instance(generated, tmp_path, "gauss", obs_dim=8)
+    inst = world_file.load_world(path)
+    params = str(REPO / "msgs_config" / "params" / "graph.yaml")
+    args = ["--ros-args", "--params-file", params, "-p", f"world_file:={path}"]
+    with lease_domain() as lease, ros_context(lease) as ctx, \
+            running_nodes(lease, ("world", ["-m", "ird_ros.world", *args]),
+                          ("perception", ["-m", "ird_ros.perception", *args])) as procs:
+        node = rclpy.create_node("gauss_probe", context=ctx)
+        try:
+            got: dict[str, list] = {"proxy": [], "classes": [], "features": []}
+            qos = names.latched_qos()
+            node.create_subscription(ProxyReward, names.TOPIC_PROXY, got["proxy"].append, qos)
+            node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, got["classes"].append, qos)
+            node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, got["features"].append, qos)
+            spin_until(node, lambda: all(got.values()), timeout=60.0, what="perception of the file world",
+                       processes=procs)
+        finally:
+            node.destroy_node()
+    assert got["proxy"][-1].condition == lavaland.FILE_CONDITION
+    obs = inst.test_features.astype(np.float32).astype(np.float64)
+    clf = inst.classifier or fit_classifier(inst.observation_model, np.random.default_rng(inst.seed))
+    classes = conv.terrain_grid_from_msg(got["classes"][-1])
+    assert classes.class_names == ("dirt", "grass", "target")
+    assert np.array_equal(classes.classes, clf.predict(obs).astype(np.uint8))
+    assert np.allclose(classes.probabilities, clf.predict_proba(obs), atol=1e-6)
+    features = conv.feature_grid_from_msg(got["features"][-1])
+    assert features.layers == inst.proxy_feature_names
+    assert np.allclose(features.features, inst.proxy_test_features, atol=1e-5)
+
+
+def test_launch_graph_refuses_a_bad_world_file_before_any_node_starts(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    doc = yaml.safe_load(WORLD.read_text())
+    doc["training_worlds"][0]["start"] = [40, 1]  # off the 7x12 map
+    for image in ("figure1_train.png", "figure1_test.png"):
+        (tmp_path / image).write_bytes((WORLD.parent / image).read_bytes())
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(doc))
+    run = subprocess.run([sys.executable, str(REPO / "scripts" / "launch_graph.py"), "--world", str(bad),
+                          "--private-domain"], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2, run.stderr
+    assert f"{bad}: training_worlds[0].start:" in run.stderr
+    assert "started" not in run.stdout

@@ -1,0 +1,128 @@
+"""The designer-in-the-loop experiment (ird_core.active, scripts/run_active.py) on tiny maps:
+outputs and columns, paired determinism, the oracle as a ceiling, the paired statistics."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import math
+from pathlib import Path
+
+import pytest
+
+from ird_core import active, experiments
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4, warm_warmup=5)
+TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
+             "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--warm-warmup", "5"]
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("run_active", ROOT / "scripts" / "run_active.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _key(results):
+    return [(r.condition, r.seed, r.strategy, r.num_queries, r.asked, r.touched_lava, r.reached_target,
+             r.reached_gold, r.true_return, None if math.isnan(r.information_gain) else r.information_gain,
+             r.answers_correct, r.cells) for r in results]
+
+
+@pytest.fixture(scope="module")
+def gold_trials() -> list[list[active.ActiveResult]]:
+    return [active.run_trial(active.ActiveSpec("pot_of_gold", seed, **TINY)) for seed in (0, 1, 2)]
+
+
+@pytest.mark.timeout(300)
+def test_trial_is_deterministic_paired_and_complete(gold_trials) -> None:
+    again = active.run_trial(active.ActiveSpec("pot_of_gold", 1, **TINY))
+    assert _key(again) == _key(gold_trials[1])
+    for results in gold_trials:
+        plans = [(r.strategy, r.num_queries) for r in results]
+        assert plans == [("literal", 0), ("oracle", 0)] + [
+            (s, k) for s in active.STRATEGIES for k in active.QUERY_COUNTS]
+        by = {(r.strategy, r.num_queries): r for r in results}
+        # Paired: zero queries is the same posterior and plan for both strategies.
+        assert by["info_gain", 0].cells == by["random", 0].cells
+        for r in results:
+            assert len(r.cells) == TINY["horizon"] + 1
+            assert 0 <= r.asked <= r.num_queries and r.answers_correct <= r.asked
+            assert math.isnan(r.information_gain) == (r.asked == 0)
+        for s in active.STRATEGIES:
+            asked = [by[s, k].asked for k in active.QUERY_COUNTS]
+            assert asked == sorted(asked)
+
+
+@pytest.mark.timeout(300)
+def test_oracle_is_the_ceiling_of_every_plan(gold_trials) -> None:
+    for results in gold_trials:
+        oracle = next(r for r in results if r.strategy == "oracle")
+        assert all(oracle.true_return >= r.true_return - 1e-12 for r in results)
+        assert not oracle.touched_lava
+
+
+def test_paired_difference_and_gap_closed_on_hand_made_results() -> None:
+    def result(seed: int, strategy: str, count: int, value: float) -> active.ActiveResult:
+        return active.ActiveResult("side_effects", seed, strategy, count, count, False, True, False, value,
+                                   math.nan, 0, math.nan, ((0, 0),))
+
+    results = [result(0, "info_gain", 1, 3.0), result(1, "info_gain", 1, 5.0), result(2, "info_gain", 1, 4.0),
+               result(0, "random", 1, 1.0), result(1, "random", 1, 4.0), result(2, "random", 1, 4.0),
+               result(0, "literal", 0, 0.0), result(1, "literal", 0, 2.0),
+               result(0, "oracle", 0, 10.0), result(1, "oracle", 0, 12.0)]
+    mean, lo, hi, n = active.paired_difference(results, "side_effects", ("info_gain", 1), ("random", 1))
+    assert n == 3 and mean == pytest.approx(1.0)
+    assert (mean, lo, hi) == pytest.approx(experiments.t_interval([2.0, 1.0, 0.0]))
+    summaries = active.aggregate(results)
+    # literal mean 1, oracle mean 11, info_gain after 1 query mean 4: 30% of the gap.
+    assert active.gap_closed(summaries, "side_effects", "info_gain", 1) == pytest.approx(0.3)
+    assert math.isnan(active.gap_closed(summaries, "side_effects", "info_gain", 3))
+    cell = next(s for s in summaries if s.strategy == "random")
+    assert cell.trials == 3 and cell.target_fraction == 1.0 and cell.mean_return == pytest.approx(3.0)
+    assert (cell.target_ci_low, cell.target_ci_high) == experiments.wilson_interval(3, 3)
+
+
+def test_spec_errors() -> None:
+    with pytest.raises(ValueError, match="condition"):
+        active.ActiveSpec("lava_lamp", 0)
+    with pytest.raises(ValueError, match="query_counts"):
+        active.ActiveSpec("side_effects", 0, query_counts=(2, 1))
+    with pytest.raises(ValueError, match="strategies"):
+        active.ActiveSpec("side_effects", 0, strategies=("ask_everything",))
+    with pytest.raises(ValueError, match="designer_beta"):
+        active.ActiveSpec("side_effects", 0, designer_beta=-1.0)
+
+
+@pytest.mark.timeout(600)
+def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_trials) -> None:
+    mod = _script()
+    out = tmp_path / "active"
+    code = mod.main(["--trials", "2", "--workers", "2", "--out", str(out), "--conditions", "pot_of_gold", *TINY_ARGS])
+    assert code == 0
+    with (out / "active.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    required = {"condition", "strategy", "num_queries", "trials", "lava_fraction", "target_fraction",
+                "gold_fraction", "mean_return", "return_ci_low", "return_ci_high", "lava_ci_low", "gold_ci_high"}
+    assert required <= set(rows[0])
+    keys = [(r["condition"], r["strategy"], r["num_queries"]) for r in rows]
+    assert len(keys) == len(set(keys)) == 2 + len(active.STRATEGIES) * len(active.QUERY_COUNTS)
+    assert {r["num_queries"] for r in rows if r["strategy"] in ("literal", "oracle")} == {"0"}
+    assert {r["strategy"] for r in rows} == {"literal", "oracle", *active.STRATEGIES}
+    assert all(r["trials"] == "2" for r in rows)
+    for name in ("active_trials.csv", "active.md", "active_pot_of_gold.png", "run.json"):
+        assert (out / name).is_file()
+    # The script's trials (2 workers) are the library's trials (seeds 0 and 1, in process).
+    with (out / "active_trials.csv").open() as fh:
+        trials = list(csv.DictReader(fh))
+    direct = [r for rs in gold_trials[:2] for r in rs]
+    assert len(trials) == len(direct)
+    for row, r in zip(trials, direct):
+        assert (row["seed"], row["strategy"], row["num_queries"]) == (str(r.seed), r.strategy, str(r.num_queries))
+        assert float(row["true_return"]) == pytest.approx(r.true_return, abs=1e-5)
+        assert row["cells"] == " ".join(f"{a},{b}" for a, b in r.cells)
+    text = (out / "active.md").read_text()
+    assert "## pot_of_gold" in text and "info-gain" in text

@@ -1,0 +1,264 @@
+"""The designer's web server without ROS or a browser: state endpoint, live pushes, and the
+checks that keep bad or stale clicks from ever reaching the node's answer callback."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import threading
+import urllib.error
+import urllib.request
+from typing import Any, Iterator
+
+import pytest
+import tornado.websocket
+
+from ird_ros.designer_web import WEB_DIR, WebDesigner, is_loopback
+
+WORLD = {"height": 3, "width": 4, "class_names": ["dirt", "grass", "target", "lava"],
+         "classes": [[0, 0, 1, 2], [0, 3, 1, 0], [1, 1, 0, 0]], "start": [0, 0], "stamp": 1.0}
+
+
+def record(query_id: int, chosen: int = -1, who: str = "") -> dict[str, Any]:
+    return {"query_id": query_id, "event": "answered" if chosen >= 0 else "proposed", "strategy": "info_gain",
+            "options": [[[0, 0], [0, 1], [0, 2]], [[0, 0], [1, 0], [2, 0]]],
+            "feature_names": ["dirt", "grass", "target", "lava"],
+            "option_features": [[2.0, 1.0, 0.0, 0.0], [2.0, 1.0, 0.0, 0.0]],
+            "information_gain": 0.25, "chosen": chosen, "beta": 1.0 if chosen >= 0 else 0.0,
+            "answered_by": who, "num_answers": 1 if chosen >= 0 else 0, "stamp": 2.0}
+
+
+class FakeNode:
+    """on_answer that records its calls; ``gate`` holds a call open until released."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[int, int]] = []
+        self.reply: tuple[bool, str] = (True, "posterior re-sampled")
+        self.gate: threading.Event | None = None
+        self.entered = threading.Event()
+
+    def __call__(self, query_id: int, chosen: int) -> tuple[bool, str]:
+        assert isinstance(query_id, int) and isinstance(chosen, int)
+        self.calls.append((query_id, chosen))
+        self.entered.set()
+        if self.gate is not None:
+            assert self.gate.wait(30.0)
+        return self.reply
+
+
+@pytest.fixture
+def node() -> FakeNode:
+    return FakeNode()
+
+
+@pytest.fixture
+def web(node: FakeNode) -> Iterator[WebDesigner]:
+    server = WebDesigner("127.0.0.1", 0, node)
+    server.start()
+    server.show_world(WORLD)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def request(web: WebDesigner, path: str, body: Any = None, *, raw: bytes | None = None,
+            content_type: str = "application/json", host: str | None = None) -> tuple[int, Any]:
+    data = raw if raw is not None else None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(web.url.rstrip("/") + path, data=data, method="POST" if data is not None else "GET")
+    if data is not None:
+        req.add_header("Content-Type", content_type)
+    if host is not None:
+        req.add_header("Host", host)
+    try:
+        with urllib.request.urlopen(req, timeout=30) as resp:
+            payload = resp.read()
+            status = resp.status
+    except urllib.error.HTTPError as err:
+        payload, status = err.read(), err.code
+    try:
+        return status, json.loads(payload)
+    except ValueError:
+        return status, payload.decode(errors="replace")
+
+
+def answer(web: WebDesigner, query_id: Any, chosen: Any) -> tuple[int, dict[str, Any]]:
+    return request(web, "/answer", {"query_id": query_id, "chosen": chosen})
+
+
+def test_page_and_assets_are_served_locally(web: WebDesigner) -> None:
+    status, page = request(web, "/")
+    assert status == 200 and "<canvas" in page
+    for asset in ("app.js", "style.css"):
+        assert (WEB_DIR / asset).is_file()
+        status, text = request(web, f"/static/{asset}")
+        assert status == 200 and text == (WEB_DIR / asset).read_text()
+    # Every asset comes from this server: no external URL in the page or its assets.
+    for path in WEB_DIR.iterdir():
+        assert "http://" not in path.read_text() and "https://" not in path.read_text(), path
+
+
+def test_state_endpoint_follows_the_node(web: WebDesigner) -> None:
+    status, state = request(web, "/state")
+    assert status == 200
+    assert state["world"] == WORLD and state["query"] is None and state["history"] == []
+    web.show_query(record(7))
+    state = request(web, "/state")[1]
+    assert state["query"]["query_id"] == 7 and state["history"] == []
+    web.show_answer(record(7, chosen=1, who="simulated"))
+    state = request(web, "/state")[1]
+    assert state["query"] is None and [r["query_id"] for r in state["history"]] == [7]
+    # A re-shown proposal (respawned node) never reopens an answered query.
+    web.show_query(record(7))
+    assert request(web, "/state")[1]["query"] is None
+    posterior = {"feature_names": ["dirt"], "mean": [0.1], "std": [0.2], "num_samples": 10, "num_answers": 1,
+                 "method": "maxent_z", "converged": True, "r_hat_max": 1.0, "stamp": 3.0}
+    risk = {"height": 3, "width": 4, "values": [[0, 1, 2, 3]] * 3, "stamp": 3.0}
+    web.show_posterior(posterior, risk)
+    state = request(web, "/state")[1]
+    assert state["posterior"] == posterior and state["risk_map"] == risk
+    assert state == web.state()
+
+
+def test_accepted_answer_calls_the_node_once(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    status, reply = answer(web, 7, 1)
+    assert (status, reply) == (200, {"ok": True, "message": "posterior re-sampled"})
+    assert node.calls == [(7, 1)]
+    # A second click on the answered query (before or after the node's record arrives).
+    status, reply = answer(web, 7, 0)
+    assert status == 409 and not reply["ok"] and "already answered" in reply["message"]
+    web.show_answer(record(7, chosen=1, who="web"))
+    status, reply = answer(web, 7, 1)
+    assert status == 409 and "already answered" in reply["message"] and "by web" in reply["message"]
+    assert node.calls == [(7, 1)]
+
+
+@pytest.mark.parametrize(
+    ("query_id", "chosen", "status", "field", "words"),
+    [
+        (99, 0, 404, "query_id", "unknown query 99"),
+        (7, 2, 400, "chosen", "out of range"),
+        (7, -1, 400, "chosen", "out of range"),
+        ("7", 0, 400, "query_id", "expected an integer"),
+        (7, 1.0, 400, "chosen", "expected an integer"),
+        (7, True, 400, "chosen", "expected an integer"),
+        (None, 0, 400, "query_id", "expected an integer"),
+    ],
+)
+def test_forged_or_malformed_clicks_are_refused(web: WebDesigner, node: FakeNode, query_id: Any, chosen: Any,
+                                                status: int, field: str, words: str) -> None:
+    web.show_query(record(7))
+    before = web.state()
+    got_status, reply = answer(web, query_id, chosen)
+    assert got_status == status and reply["ok"] is False
+    assert reply["message"].startswith(field + ":") and words in reply["message"]
+    assert node.calls == [] and web.state() == before
+
+
+def test_non_json_and_bad_bodies_are_refused(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    # A plain form post (what another web site could make a browser send) is refused.
+    status, reply = request(web, "/answer", raw=b"query_id=7&chosen=0", content_type="application/x-www-form-urlencoded")
+    assert status == 415 and "application/json" in reply["message"]
+    status, reply = request(web, "/answer", raw=b"{not json")
+    assert status == 400 and reply["message"].startswith("body:")
+    status, reply = request(web, "/answer", raw=b"[7, 0]")
+    assert status == 400 and reply["message"].startswith("body:")
+    assert node.calls == []
+
+
+def test_double_click_while_the_first_is_in_flight(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    node.gate = threading.Event()
+    first: list[tuple[int, dict[str, Any]]] = []
+    thread = threading.Thread(target=lambda: first.append(answer(web, 7, 0)))
+    thread.start()
+    assert node.entered.wait(30.0)
+    assert request(web, "/state")[1]["pending"] == [7]
+    status, reply = answer(web, 7, 1)
+    assert status == 409 and "already being sent" in reply["message"]
+    node.gate.set()
+    thread.join(30.0)
+    assert first == [(200, {"ok": True, "message": "posterior re-sampled"})]
+    assert node.calls == [(7, 0)]
+    assert request(web, "/state")[1]["pending"] == []
+
+
+def test_node_refusal_is_shown_and_the_query_stays_open(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    node.reply = (False, "busy: re-sampling the posterior")
+    status, reply = answer(web, 7, 0)
+    assert status == 409 and reply == {"ok": False, "message": "busy: re-sampling the posterior"}
+    state = request(web, "/state")[1]
+    assert state["query"]["query_id"] == 7 and state["pending"] == []
+    node.reply = (True, "ok")
+    assert answer(web, 7, 0)[0] == 200
+    assert node.calls == [(7, 0), (7, 0)]
+
+
+def test_failing_callback_is_a_refusal(web: WebDesigner, node: FakeNode) -> None:
+    def broken(query_id: int, chosen: int) -> tuple[bool, str]:
+        raise RuntimeError("service gone")
+
+    web.on_answer = broken
+    web.show_query(record(7))
+    status, reply = answer(web, 7, 0)
+    assert status == 409 and reply["ok"] is False and "service gone" in reply["message"]
+    assert request(web, "/state")[1]["query"]["query_id"] == 7
+
+
+def test_new_world_makes_old_queries_stale(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    web.show_world(dict(WORLD, stamp=5.0))
+    status, reply = answer(web, 7, 0)
+    assert status == 409 and "earlier world" in reply["message"]
+    assert request(web, "/state")[1]["query"] is None and node.calls == []
+
+
+def test_websocket_pushes_every_change(web: WebDesigner) -> None:
+    async def scenario() -> list[dict[str, Any]]:
+        conn = await tornado.websocket.websocket_connect(web.url.replace("http", "ws") + "ws")
+        seen = [json.loads(await conn.read_message())]
+        web.show_query(record(7))
+        seen.append(json.loads(await conn.read_message()))
+        web.show_answer(record(7, chosen=0, who="simulated"))
+        seen.append(json.loads(await conn.read_message()))
+        conn.close()
+        return seen
+
+    seen = asyncio.run(asyncio.wait_for(scenario(), 30.0))
+    assert seen[0]["query"] is None
+    assert seen[1]["query"]["query_id"] == 7
+    assert seen[2]["query"] is None and seen[2]["history"][0]["answered_by"] == "simulated"
+    assert seen[0]["version"] < seen[1]["version"] < seen[2]["version"]
+
+
+def test_foreign_host_header_is_refused_on_loopback(web: WebDesigner) -> None:
+    status, _ = request(web, "/state", host="evil.example:80")
+    assert status == 403
+    assert request(web, "/state", host="localhost")[0] == 200
+
+
+def test_binding_and_arguments(caplog: pytest.LogCaptureFixture) -> None:
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost") and is_loopback("127.3.0.1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.0.2.1") and not is_loopback("example.org")
+    with pytest.raises(ValueError, match="port"):
+        WebDesigner("127.0.0.1", 70000, lambda q, c: (True, ""))
+    with pytest.raises(ValueError, match="on_answer"):
+        WebDesigner("127.0.0.1", 0, None)
+    # Loopback: no warning, and the URL names the bound port.
+    with caplog.at_level(logging.WARNING, logger="ird_ros.designer_web"):
+        with WebDesigner("127.0.0.1", 0, lambda q, c: (True, "")) as quiet:
+            assert not quiet.url.endswith(":0/")
+            assert request(quiet, "/state")[0] == 200
+            quiet.stop()  # stop is idempotent: leaving the block stops again
+            with pytest.raises(urllib.error.URLError):
+                urllib.request.urlopen(quiet.url + "state", timeout=10)
+    assert not caplog.records
+    # Any other address is allowed but logged as a warning (no authentication on the page);
+    # the warning comes with the configuration, so the test never binds a non-loopback address.
+    with caplog.at_level(logging.WARNING, logger="ird_ros.designer_web"):
+        WebDesigner("0.0.0.0", 0, lambda q, c: (True, ""))
+    assert any("not loopback" in r.getMessage() for r in caplog.records)

@@ -1,0 +1,76 @@
+"""Experiments on a world file: ``run_experiments.py --world FILE`` and ``TrialSpec.world``."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ird_core import experiments as ex
+from ird_core import inference, lavaland, world_file
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = dict(num_samples=16, num_chains=2, warmup=20, thin=1, max_leapfrog=8, num_proxy_samples=20,
+             z_methods=("maxent_z",), factorial=False)
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("run_experiments", ROOT / "scripts" / "run_experiments.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_run_experiments_world_figure1(tmp_path: Path) -> None:
+    """Figure 1's world is fixed: the literal plan is the same in every trial and crosses the
+    lava on the shortcut; the IRD plans (sampler seeds 0 and 1) never touch lava."""
+    args = ["--world", str(ROOT / "worlds" / "figure1.yaml"), "--trials", "2", "--workers", "1", "--out",
+            str(tmp_path), "--no-factorial", "--z-methods", "maxent_z", "--num-samples", "16", "--num-chains", "2",
+            "--warmup", "20", "--thin", "1"]
+    assert _script().main(args) == 0
+    with (tmp_path / "trials.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["condition"] for r in rows} == {lavaland.FILE_CONDITION}
+    assert sorted((r["seed"], r["planner"]) for r in rows) == [
+        ("0", "ird_maxent_z"), ("0", "literal"), ("1", "ird_maxent_z"), ("1", "literal")]
+    literal = [r for r in rows if r["planner"] == "literal"]
+    assert literal[0]["cells"] == literal[1]["cells"] and all(r["touched_lava"] == "1" for r in literal)
+    assert all(r["touched_lava"] == "0" for r in rows if r["planner"] != "literal")
+    inst = world_file.load_world(ROOT / "worlds" / "figure1.yaml")
+    cells = [tuple(int(v) for v in c.split(",")) for c in literal[0]["cells"].split()]
+    expected = lavaland.true_return(inst.test_labels, cells, inst.true_terrain_reward)
+    assert float(literal[0]["true_return"]) == pytest.approx(expected, rel=1e-5)  # the csv keeps 6 digits
+
+
+def test_bad_world_file_exits_2_naming_the_key(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("terrains: [{name: dirt, colour: [1, 2, 3]}]\n")
+    assert _script().main(["--world", str(bad), "--trials", "1", "--out", str(tmp_path / "out")]) == 2
+    assert f"{bad}: training_worlds: missing required key" in capsys.readouterr().err
+
+
+def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> None:
+    """Two training worlds: the trial's IRD plan is the plan of the joint posterior (IRD_SPEC 7)
+    seeded from the trial seed, not of the first world's posterior alone."""
+    path = ROOT / "worlds" / "two_training_worlds.yaml"
+    spec = ex.TrialSpec(condition=lavaland.FILE_CONDITION, seed=5, world=str(path), **SMALL)
+    (literal, ird) = ex.run_trial(spec)
+    inst = world_file.load_world(path)
+    assert len(inst.extra_training_worlds) == 1
+    seed = int(np.random.SeedSequence([5, ex.Z_METHODS.index("maxent_z") + 1]).generate_state(1)[0]) % 2**31
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        joint = inference.sample_joint_posterior(
+            lavaland.proxy_observations(inst), spec.beta, "maxent_z", spec.num_samples, seed, spec.prior_sigma,
+            num_chains=2, warmup=20, thin=1, max_leapfrog=8)
+    assert ird.r_hat_max == joint.r_hat_max
+    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    from ird_core import planning
+
+    expected = planning.plan_path(lavaland.test_mdp(inst), joint.samples, "per_step", "training_features", reference)
+    assert ird.cells == tuple(expected.cells)
+    assert literal.condition == ird.condition == lavaland.FILE_CONDITION

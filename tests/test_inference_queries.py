@@ -1,0 +1,83 @@
+"""ird_ros.inference_queries.Evidence (no ROS): when the inference node forgets a world, and how
+answers are checked before anything changes."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace as NS
+
+import numpy as np
+import pytest
+
+from ird_ros.inference_queries import Evidence, resample_seed
+
+OLD, NEW = (10, 0), (20, 0)
+
+
+def _query(q: int = 2) -> NS:
+    return NS(num_options=q, option_features=np.arange(q * 3, dtype=float).reshape(q, 3))
+
+
+def _evidence(world: tuple[int, int]) -> Evidence:
+    ev = Evidence()
+    ev.on_proxy(OLD)
+    ev.reset(job=NS(seed=1), posterior=NS(samples=np.zeros((4, 3))), feature_names=("a", "b", "c"), world_stamp=world)
+    return ev
+
+
+def test_a_new_world_forgets_the_evidence_and_its_queries() -> None:
+    ev = _evidence(OLD)
+    qid = ev.add_query(_query(), {})
+    epoch = ev.epoch
+    assert not ev.on_proxy(OLD)  # the same world again (a late latched copy): kept
+    assert ev.on_proxy(NEW) and ev.job is None and ev.posterior is None and ev.epoch > epoch
+    with pytest.raises(ValueError, match=f"^query_id: query {qid} belongs to a forgotten world"):
+        ev.check_answer(qid, 0, 0.0, 1.0)
+
+
+def test_evidence_on_the_new_worlds_map_survives_its_late_proxy() -> None:
+    ev = _evidence(NEW)  # /ird/infer on the new world's map arrived before the new proxy
+    assert not ev.on_proxy(NEW) and ev.job is not None
+    assert ev.on_proxy((30, 0)) and ev.job is None  # then another world
+
+
+def test_reset_starts_new_evidence_and_ids_stay_unique() -> None:
+    ev = _evidence(OLD)
+    first = ev.add_query(_query(), {})
+    open_query, beta = ev.check_answer(first, 1, 0.0, 2.5)
+    assert beta == 2.5  # 0 = the node's default
+    ev.commit(open_query, ev.choice(open_query, 1, beta), NS(samples=np.ones((4, 3))))
+    assert len(ev.answers) == 1
+    ev.reset(job=NS(seed=2), posterior=NS(samples=np.zeros((4, 3))), feature_names=("a", "b", "c"), world_stamp=OLD)
+    assert ev.answers == [] and ev.queries == {}
+    assert ev.add_query(_query(), {}) == first + 1
+
+
+@pytest.mark.parametrize("query_id, chosen, beta, message", [
+    (99, 0, 0.0, "^query_id: unknown query 99"),
+    (1, 2, 0.0, r"^chosen: 2 is out of range for 2 options \(0..1\)"),
+    (1, -1, 0.0, "^chosen: -1 is out of range"),
+    (1, 0, -0.5, "^beta: must be finite and >= 0"),
+    (1, 0, float("inf"), "^beta: must be finite and >= 0"),
+])
+def test_bad_answers_name_the_field_and_change_nothing(query_id: int, chosen: int, beta: float, message: str) -> None:
+    ev = _evidence(OLD)
+    assert ev.add_query(_query(), {}) == 1
+    with pytest.raises(ValueError, match=message):
+        ev.check_answer(query_id, chosen, beta, 1.0)
+    assert ev.answers == [] and not ev.queries[1].answered
+
+
+def test_an_answered_query_cannot_be_answered_again() -> None:
+    ev = _evidence(OLD)
+    qid = ev.add_query(_query(3), {})
+    open_query, beta = ev.check_answer(qid, 2, 4.0, 1.0)
+    choice = ev.choice(open_query, 2, beta)
+    assert (choice.chosen, choice.beta) == (2, 4.0) and np.array_equal(choice.option_features, _query(3).option_features)
+    ev.commit(open_query, choice, NS(samples=np.ones((4, 3))))
+    with pytest.raises(ValueError, match=f"^query_id: query {qid} was already answered"):
+        ev.check_answer(qid, 0, 0.0, 1.0)
+
+
+def test_resample_seeds_differ_per_round_and_fit_uint32() -> None:
+    seeds = [resample_seed(2**32 - 1, n) for n in range(1, 50)]
+    assert len(set(seeds)) == len(seeds) and all(0 <= s < 2**32 for s in seeds)

@@ -1,0 +1,270 @@
+"""ird_ros.supervisor with real child processes (plain ``python -c`` children, no ROS).
+
+Properties: the stop escalation sends SIGINT, SIGTERM, SIGKILL in that order and on schedule
+to a child that ignores the first two; a crashed child is restarted after ``respawn_delay``
+and readiness only counts for the current process; exit events carry the exit code or signal;
+PR_SET_PDEATHSIG ends a child when its supervising process is SIGKILLed; the output pump
+keeps every line. Nothing sleeps: waits are on supervisor events, output lines and pidfds.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from ird_ros.supervisor import (
+    ChildState,
+    EventKind,
+    ProcessExited,
+    ProcessReady,
+    ProcessRespawning,
+    ProcessSpec,
+    ProcessStarted,
+    SignalSent,
+    Supervisor,
+)
+from ird_ros.testing import NodeProcess
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Installs handlers that report and otherwise ignore SIGINT/SIGTERM, then says so.
+STUBBORN = """
+import signal
+def report(sig, frame):
+    print("got " + signal.Signals(sig).name, flush=True)
+signal.signal(signal.SIGINT, report)
+signal.signal(signal.SIGTERM, report)
+print("armed", flush=True)
+while True:
+    signal.pause()
+"""
+
+
+def py(code: str) -> tuple[str, ...]:
+    return (sys.executable, "-c", code)
+
+
+@pytest.fixture
+def make() -> Iterator:
+    made: list[Supervisor] = []
+
+    def factory(*specs: ProcessSpec, **kw: object) -> Supervisor:
+        sup = Supervisor(specs, cwd=ROOT, **kw)  # type: ignore[arg-type]
+        made.append(sup)
+        sup.start()
+        return sup
+
+    yield factory
+    for sup in made:
+        sup.stop_processes(sup.names, 0.5, 0.5)
+        sup.shutdown()
+
+
+def test_stop_escalates_sigint_sigterm_sigkill_on_schedule(make) -> None:
+    sup = make(ProcessSpec("stubborn", py(STUBBORN)))
+    sup.wait_for_output("stubborn", "armed", timeout=30)
+    pid = sup.info("stubborn").pid
+    assert os.getpgid(pid) == pid  # leads its own process group
+    sup.stop_processes(["stubborn"], sigterm_timeout=0.4, sigkill_timeout=0.3)
+
+    sent = [e for e in sup.events() if isinstance(e, SignalSent)]
+    assert [e.signal for e in sent] == [signal.SIGINT, signal.SIGTERM, signal.SIGKILL]
+    assert all(e.pid == pid and e.kind == "signalled" for e in sent)
+    eps = 0.05  # the schedule starts a moment before SIGINT goes out
+    assert sent[1].time - sent[0].time >= 0.4 - eps
+    assert sent[2].time - sent[0].time >= 0.4 + 0.3 - eps
+    assert sent[2].time - sent[0].time < 0.4 + 0.3 + 1.0
+
+    exited = sup.wait_for_event(EventKind.STOPPED, "stubborn", timeout=10)
+    assert isinstance(exited, ProcessExited) and exited.requested
+    assert exited.returncode == -signal.SIGKILL and exited.detail == "killed by SIGKILL"
+    assert exited.index > sent[2].index
+    # the child really received SIGINT, then SIGTERM (its handlers ran, in that order)
+    sup.wait_for_output("stubborn", "got SIGTERM", timeout=10)
+    lines = sup.output("stubborn").splitlines()
+    assert lines.index("got SIGINT") < lines.index("got SIGTERM")
+    assert sup.shutdown()["stubborn"] == -signal.SIGKILL
+    assert sup.info("stubborn").state is ChildState.STOPPED
+
+
+def test_a_child_that_ends_on_sigint_gets_no_further_signal(make) -> None:
+    sup = make(ProcessSpec("polite", py("import signal; print('up', flush=True); signal.pause()")))
+    sup.wait_for_output("polite", "up", timeout=30)
+    sup.stop_processes(["polite"], sigterm_timeout=5.0, sigkill_timeout=5.0)
+    sent = [e.signal for e in sup.events() if isinstance(e, SignalSent)]
+    assert sent == [signal.SIGINT]
+    assert sup.wait_for_event("stopped", "polite").returncode == -signal.SIGINT  # type: ignore[attr-defined]
+
+
+def test_respawn_after_a_crash_waits_respawn_delay(make, tmp_path: Path) -> None:
+    marker = tmp_path / "crashed-once"
+    code = (f"import os, signal, sys\nm = {str(marker)!r}\n"
+            "if not os.path.exists(m):\n    open(m, 'w').close(); sys.exit(3)\n"
+            "print('second life', flush=True)\nsignal.pause()\n")
+    sup = make(ProcessSpec("phoenix", py(code), respawn=True, respawn_delay=0.3))
+    again = sup.wait_for_event("started", "phoenix", after=1, timeout=30)
+    kinds = [(e.kind, e.name) for e in sup.events()]
+    assert [k for k, _ in kinds[:4]] == ["started", "died", "respawning", "started"]
+
+    first, died, respawning = sup.events()[:3]
+    assert isinstance(first, ProcessStarted) and first.restart == 0
+    assert isinstance(died, ProcessExited) and died.returncode == 3 and not died.requested
+    assert died.pid == first.pid and died.detail == "exited with code 3"
+    assert isinstance(respawning, ProcessRespawning) and respawning.restart == 1 and respawning.delay == 0.3
+    assert isinstance(again, ProcessStarted) and again.restart == 1 and again.pid != first.pid
+    assert again.time - died.time >= 0.3
+
+    info = sup.info("phoenix")
+    assert info.state is ChildState.STARTING and info.restarts == 1 and info.pid == again.pid
+    # readiness counts only for the current process
+    assert first.pid is not None and sup.mark_ready("phoenix", first.pid) is None
+    ready = sup.mark_ready("phoenix", again.pid)
+    assert isinstance(ready, ProcessReady) and ready.restart == 1 and ready.kind == "ready"
+    assert sup.info("phoenix").state == "ready"
+    sup.wait_for_output("phoenix", "second life")
+
+
+def test_no_respawn_after_stop(make) -> None:
+    sup = make(ProcessSpec("sleeper", py("import signal; print('up', flush=True); signal.pause()"),
+                           respawn=True, respawn_delay=0.0))
+    sup.wait_for_output("sleeper", "up", timeout=30)
+    sup.stop_processes(["sleeper"], 1.0, 1.0)
+    sup.shutdown()
+    assert [e.kind for e in sup.events() if not isinstance(e, SignalSent)] == ["started", "stopped"]
+
+
+@pytest.mark.parametrize(
+    ("code", "returncode", "detail"),
+    [
+        ("import sys; sys.exit(7)", 7, "exited with code 7"),
+        ("import sys; sys.exit(0)", 0, "exited with code 0"),
+        ("import os, signal; os.kill(os.getpid(), signal.SIGUSR1)", -signal.SIGUSR1, "killed by SIGUSR1"),
+    ],
+)
+def test_exit_events_carry_the_exit_code(make, code: str, returncode: int, detail: str) -> None:
+    sup = make(ProcessSpec("short", py(code)))
+    ev = sup.wait_for_event("died", "short", timeout=30)
+    assert isinstance(ev, ProcessExited)
+    assert ev.returncode == returncode and ev.detail == detail and ev.kind is EventKind.DIED
+    assert ev.pid == sup.events()[0].pid
+    info = sup.info("short")
+    assert info.state is ChildState.EXITED and info.returncode == returncode
+
+
+def test_output_pump_keeps_every_line_in_order(make, tmp_path: Path) -> None:
+    code = ("import sys\nfor i in range(200): print(f'line {i}')\n"
+            "sys.stdout.flush(); print('to stderr', file=sys.stderr)")
+    echoed: list[str] = []
+    cond = threading.Condition()
+
+    def echo(line: str) -> None:
+        with cond:
+            echoed.append(line)
+            cond.notify_all()
+
+    sup = make(ProcessSpec("talker", py(code)), output="prefix", echo=echo, tail_lines=500)
+    sup.wait_for_event("died", "talker", timeout=30)
+    sup.wait_for_output("talker", "to stderr", timeout=10)
+    expected = [f"line {i}" for i in range(200)] + ["to stderr"]
+    assert sup.output("talker", last=500).splitlines() == expected
+    assert sup.output("talker", last=2).splitlines() == expected[-2:]
+    with cond:
+        assert cond.wait_for(lambda: len(echoed) == len(expected), timeout=10)
+    assert echoed == [f"[talker] {line}" for line in expected]
+
+    files = make(ProcessSpec("writer", py(code)), output="files", log_dir=tmp_path)
+    files.wait_for_event("died", "writer", timeout=30)
+    assert (tmp_path / "writer.log").read_text().splitlines() == expected
+    assert files.output("writer") == ""
+
+
+def test_a_death_is_reported_after_the_last_words(make) -> None:
+    """The exit event comes only once the child's pipe is drained: its last line (the reason it
+    died) is in the tail when the event is delivered. The pump is held at the first line until
+    the test has the event (at most 1 s), so a report that does not wait for EOF is caught."""
+    code = ("import sys\nfor i in range(200): print(f'noise {i}')\n"
+            "print('No module named nowhere', flush=True); sys.exit(1)")
+    released = threading.Event()
+
+    def echo(line: str) -> None:
+        if line.endswith("noise 0"):
+            released.wait(1.0)
+
+    sup = make(ProcessSpec("dying", py(code)), output="prefix", echo=echo, tail_lines=50)
+    ev = sup.wait_for_event("died", "dying", timeout=30)
+    last = sup.output("dying", last=1)
+    released.set()
+    assert isinstance(ev, ProcessExited) and ev.returncode == 1
+    assert last == "No module named nowhere"
+
+
+PARENT = """
+import json, signal, sys
+from ird_ros.supervisor import ProcessSpec, Supervisor
+sup = Supervisor([ProcessSpec("orphan", (sys.executable, "-c", "import signal; signal.pause()"))])
+sup.start()
+print(json.dumps({"child": sup.info("orphan").pid}), flush=True)
+signal.pause()
+"""
+
+
+def _gone(pid: int, timeout: float) -> bool:
+    """Wait on a pidfd (no polling) until ``pid`` has exited; True if it has."""
+    try:
+        fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN)
+        return bool(poller.poll(timeout * 1000))
+    finally:
+        os.close(fd)
+
+
+def test_pdeathsig_ends_the_child_when_the_supervisor_is_killed() -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+    parent = NodeProcess([sys.executable, "-c", PARENT], env, ROOT, "parent")
+    child = None
+    try:
+        child = json.loads(parent.wait_for_output('"child"', timeout=30))["child"]
+        assert not _gone(child, 0)
+        # the child runs in its own session: only PR_SET_PDEATHSIG can tell it that its parent died
+        assert os.getsid(child) == child != os.getsid(parent.pid)
+        parent.proc.send_signal(signal.SIGKILL)
+        parent.proc.wait(timeout=10)
+        assert _gone(child, timeout=10)
+    finally:
+        parent.stop()
+        if child is not None and not _gone(child, 0):
+            os.killpg(child, signal.SIGKILL)
+
+
+def test_bad_arguments_name_the_field() -> None:
+    with pytest.raises(ValueError, match="respawn_delay"):
+        ProcessSpec("x", py("pass"), respawn=True, respawn_delay=-1.0)
+    with pytest.raises(ValueError, match="argv"):
+        ProcessSpec("x", ())
+    with pytest.raises(ValueError, match="output"):
+        Supervisor([ProcessSpec("x", py("pass"))], output="loud")
+    with pytest.raises(ValueError, match="log_dir"):
+        Supervisor([ProcessSpec("x", py("pass"))], output="files")
+    with pytest.raises(ValueError, match="duplicate"):
+        Supervisor([ProcessSpec("x", py("pass")), ProcessSpec("x", py("pass"))])
+
+
+def test_supervisor_imports_no_ros() -> None:
+    probe = ("import json, sys, ird_ros.supervisor, ird_ros.domains, ird_ros.waits; "
+             "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'ird_msgs'))))")
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                         capture_output=True, text=True, check=True, timeout=60)
+    assert json.loads(out.stdout) == []
