@@ -35,6 +35,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
 
 
+def add_trial_arguments(parser: argparse.ArgumentParser, defaults: Any) -> None:
+    """The map and sampler flags both experiment scripts share, defaulting to ``defaults``'
+    fields (an ``ird_core.experiments.TrialSpec`` or ``ird_core.active.ActiveSpec``)."""
+    for flag, kind in (("size", int), ("horizon", int), ("obs_dim", int), ("num_samples", int),
+                       ("beta", float), ("prior_sigma", float), ("num_chains", int), ("warmup", int),
+                       ("thin", int), ("max_leapfrog", int)):
+        parser.add_argument("--" + flag.replace("_", "-"), type=kind, default=getattr(defaults, flag))
+
+
 def describe(workers: int, scheduler: str | None) -> str:
     return f"Dask {scheduler}" if scheduler else f"{workers} local worker(s)"
 

@@ -37,6 +37,7 @@ import math  # noqa: E402
 import time  # noqa: E402
 
 from ird_core import active  # noqa: E402
+from ird_core.inference import METHODS  # noqa: E402
 from ird_core.lavaland import ALL_CONDITIONS  # noqa: E402
 from ird_core.render import TERRAIN_COLORS  # noqa: E402
 from ird_core.terrain import Terrain  # noqa: E402
@@ -201,17 +202,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--num-options", type=int, default=d.num_options)
     p.add_argument("--designer-beta", type=float, default=d.designer_beta)
     p.add_argument("--choice-beta", type=float, default=None, help="robot's answer rationality (default: designer's)")
-    p.add_argument("--size", type=int, default=d.size)
-    p.add_argument("--horizon", type=int, default=d.horizon)
-    p.add_argument("--obs-dim", type=int, default=d.obs_dim)
-    p.add_argument("--num-samples", type=int, default=d.num_samples)
-    p.add_argument("--beta", type=float, default=d.beta)
-    p.add_argument("--prior-sigma", type=float, default=d.prior_sigma)
-    p.add_argument("--method", default=d.method, choices=("maxent_z", "sample_z"))
-    p.add_argument("--num-chains", type=int, default=d.num_chains)
-    p.add_argument("--warmup", type=int, default=d.warmup)
-    p.add_argument("--thin", type=int, default=d.thin)
-    p.add_argument("--max-leapfrog", type=int, default=d.max_leapfrog)
+    _parallel.add_trial_arguments(p, d)
+    p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
     return p
 

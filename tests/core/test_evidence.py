@@ -22,6 +22,7 @@ from ird_core.enumeration import (
     trajectory_features,
 )
 from ird_core.mdp import GridMDP
+from _quadrature import quadrature_moments
 
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (2, 3), horizon: int = 2) -> GridMDP:
@@ -219,19 +220,7 @@ def test_choices_between_paths_of_unequal_length_are_not_shift_invariant() -> No
 def brute_quadrature_moments(observations: list, beta: float, method: str, samples: np.ndarray
                              ) -> tuple[np.ndarray, np.ndarray]:
     """Mean (2,) and covariance (2, 2) of the brute-force 2-d joint posterior on a dense grid."""
-    def moments(lo: np.ndarray, hi: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-        axes = [np.linspace(lo[i], hi[i], n) for i in range(2)]
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-        logp = brute_joint(grid, observations, beta, method, 1.0, samples)
-        p = np.exp(logp - logp.max())
-        p /= p.sum()
-        mean = p @ grid
-        centred = grid - mean
-        return mean, (centred * p[:, None]).T @ centred
-
-    mean, cov = moments(np.full(2, -7.0), np.full(2, 7.0), 141)
-    sd = np.sqrt(np.diag(cov))
-    return moments(mean - 8 * sd, mean + 8 * sd, 241)
+    return quadrature_moments(lambda pts: brute_joint(pts, observations, beta, method, 1.0, samples))
 
 
 def assert_moments(post: I.Posterior, chains: int, want_mean: np.ndarray, want_cov: np.ndarray) -> None:

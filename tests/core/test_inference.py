@@ -14,6 +14,7 @@ from ird_core import lavaland
 from ird_core import mcmc
 from ird_core.enumeration import brute_feature_expectations, brute_log_partition
 from ird_core.mdp import GridMDP, feature_expectations
+from _quadrature import quadrature_moments
 
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (3, 3), horizon: int = 3) -> GridMDP:
@@ -201,7 +202,7 @@ def test_bad_weights_name_the_field() -> None:
 # ------------------------------------------------------------------------------ sampling
 
 
-def quadrature_moments(mdp: GridMDP, proxy: np.ndarray, beta: float, method: str, samples: np.ndarray
+def posterior_moments(mdp: GridMDP, proxy: np.ndarray, beta: float, method: str, samples: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Mean (2,) and covariance (2, 2) of the exact 2-d posterior on a dense grid.
 
@@ -209,19 +210,7 @@ def quadrature_moments(mdp: GridMDP, proxy: np.ndarray, beta: float, method: str
     """
     model = I.make_posterior_model(proxy, mdp, beta, method, 1.0, samples)
 
-    def moments(lo: np.ndarray, hi: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-        axes = [np.linspace(lo[i], hi[i], n) for i in range(2)]
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-        logp = np.concatenate([model.log_density(chunk) for chunk in np.array_split(grid, 16)])
-        p = np.exp(logp - logp.max())
-        p /= p.sum()
-        mean = p @ grid
-        centred = grid - mean
-        return mean, (centred * p[:, None]).T @ centred
-
-    mean, cov = moments(np.full(2, -7.0), np.full(2, 7.0), 141)
-    sd = np.sqrt(np.diag(cov))
-    return moments(mean - 8 * sd, mean + 8 * sd, 241)
+    return quadrature_moments(model.log_density)
 
 
 @pytest.mark.parametrize("method", I.METHODS)
@@ -230,7 +219,7 @@ def test_sampler_matches_quadrature_in_2d(method: str, beta: float) -> None:
     mdp = tiny_mdp(11, d=2, shape=(2, 3), horizon=3)
     rng = np.random.default_rng(11)
     proxy, samples = np.array([0.8, -0.5]), rng.normal(size=(20, 2))
-    want_mean, want_cov = quadrature_moments(mdp, proxy, beta, method, samples)
+    want_mean, want_cov = posterior_moments(mdp, proxy, beta, method, samples)
     chains, per_chain = 16, 125
     post = I.sample_posterior(proxy, mdp, beta, method, chains * per_chain, seed=1, proxy_samples=samples,
                               num_chains=chains)
