@@ -91,7 +91,7 @@ def _complete_before(blob: bytes, sent: list[Sent], cut: int) -> int:
 
 
 def _check_rebuilt(bag: Path, sent: list[Sent], k: int) -> None:
-    got, counts, reader = _read_rosbags(bag)
+    got, counts, _ = _read_rosbags(bag)
     assert got == sent[:k]
     assert _read_mcap(bag / f"{bag.name}.mcap") == sent[:k]
     expected_counts = {t: sum(1 for s in sent[:k] if s[0] == t) for t in ("/chatter", "/point")}

@@ -12,7 +12,6 @@ A missing browser or driver fails the test (apt-get install -y chromium chromium
 from __future__ import annotations
 
 import socket
-import tempfile
 from pathlib import Path
 from typing import Any, Iterator
 

@@ -27,14 +27,14 @@ SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     import rclpy
     from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
-    from ird_msgs.srv import InferReward, PlanPath
+    from _mission import drive_ird_plan
+    from ird_msgs.srv import InferReward
     from nav_msgs.msg import OccupancyGrid
 
     from ird_ros import conversions as conv
     from ird_ros import names
     from ird_ros.launcher import GraphLauncher
-    from ird_ros.testing import (call_service, receive_messages, ros_context, spin_until,
-                                 wait_for_publishers)
+    from ird_ros.testing import (call_service, receive_messages, ros_context, wait_for_publishers)
 
     tmp = tmp_path_factory.mktemp("e2e")
     params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
@@ -75,20 +75,7 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
                 inst = lavaland.make_instance("latent_raw", SEED, size=SIZE, horizon=HORIZON, obs_dim=OBS_DIM)
                 reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
-                plan_req = PlanPath.Request()
-                plan_req.start_row, plan_req.start_col = proxy.test_start_row, proxy.test_start_col
-                plan_req.horizon = proxy.test_horizon
-                plan_req.mode, plan_req.baseline, plan_req.label = "per_step", "training_features", "ird"
-                plan_req.weights = list(res.posterior.samples)
-                plan_req.reference_features = list(reference)
-                plan = call_service(node, node.create_client(PlanPath, names.SRV_PLAN), plan_req, timeout=120)
-                assert plan.success, plan.message
-                out["plan_cells"] = list(zip(plan.rows, plan.cols))
-                stamp = plan.path.header.stamp
-                spin_until(node, lambda: any(s.done and s.plan_stamp == stamp for s in status), timeout=60,
-                           what="Rob finishing the plan")
-                out["final"] = [s for s in status if s.done and s.plan_stamp == stamp][-1]
-                out["statuses"] = [s for s in status if s.plan_stamp == stamp]
+                out.update(drive_ird_plan(node, proxy, res.posterior.samples, reference, status))
                 out["inst"], out["reference"] = inst, reference
             finally:
                 node.destroy_node()

@@ -19,21 +19,16 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros import names
 from ird_ros.inference import ExtraWorld, InferenceJob, SamplerSettings, job_observations
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, wait_for_service
+from ird_ros.testing import DomainLease, NodeProcess, call_service, wait_for_service
+from _inference_node import SAMPLER, small_inference_node
 
 ROOT = Path(__file__).resolve().parents[2]
-PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
-SAMPLER = dict(num_chains=4, warmup=20, thin=1, num_proxy_samples=16)
 
 
 @pytest.fixture(scope="module")
 def node(ros_domain: DomainLease) -> Iterator[NodeProcess]:
-    args = ["-m", "ird_ros.inference", "--ros-args", "--params-file", PARAMS]
-    for key, value in SAMPLER.items():
-        args += ["-p", f"{key}:={value}"]
-    with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as proc:
+    with small_inference_node(ros_domain) as proc:
         yield proc
-    assert proc.returncode == 0, proc.describe()
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ from __future__ import annotations
 import array
 import math
 import time
-from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
@@ -24,23 +23,16 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros import names
 from ird_ros.inference import proxy_map_terms
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
+from _inference_node import SAMPLER, small_inference_node
 
-ROOT = Path(__file__).resolve().parents[2]
-PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
-# Small sampler settings keep the suite fast; the node passes them to sample_posterior.
-SAMPLER = dict(num_chains=4, warmup=20, thin=1, num_proxy_samples=16)
 SIZE, HORIZON = 5, 6
 
 
 @pytest.fixture(scope="module")
 def inference(ros_domain: DomainLease) -> Iterator[NodeProcess]:
-    args = ["-m", "ird_ros.inference", "--ros-args", "--params-file", PARAMS]
-    for key, value in SAMPLER.items():
-        args += ["-p", f"{key}:={value}"]
-    with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as proc:
+    with small_inference_node(ros_domain) as proc:
         yield proc
-    assert proc.returncode == 0, proc.describe()
 
 
 class Client:

@@ -20,7 +20,7 @@ from ird_core import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros import graph, names
-from ird_ros.testing import DomainLease, call_service, spin_until, wait_for_node, wait_for_service
+from ird_ros.testing import DomainLease, spin_until, wait_for_node, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -26,13 +26,14 @@ WORLD = REPO / "worlds" / "figure1.yaml"
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     import rclpy
     from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus, TerrainGrid
-    from ird_msgs.srv import InferReward, PlanPath
+    from _mission import drive_ird_plan
+    from ird_msgs.srv import InferReward
     from nav_msgs.msg import OccupancyGrid
 
     from ird_ros import conversions as conv
     from ird_ros import names
     from ird_ros.launcher import GraphLauncher, graph_specs
-    from ird_ros.testing import call_service, receive_messages, ros_context, spin_until, wait_for_publishers
+    from ird_ros.testing import call_service, receive_messages, ros_context, wait_for_publishers
     from ird_ros.world import TOPIC_INFER_REQUEST, with_world_file
 
     tmp = tmp_path_factory.mktemp("world_file")
@@ -68,21 +69,8 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
                 inst = out["wf"].instance
                 reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
-                plan_req = PlanPath.Request()
-                plan_req.start_row, plan_req.start_col = proxy.test_start_row, proxy.test_start_col
-                plan_req.horizon = proxy.test_horizon
-                plan_req.mode, plan_req.baseline, plan_req.label = "per_step", "training_features", "ird"
-                plan_req.weights = list(res.posterior.samples)
-                plan_req.reference_features = list(reference)
-                plan = call_service(node, node.create_client(PlanPath, names.SRV_PLAN), plan_req, timeout=120)
-                assert plan.success, plan.message
-                out["plan_cells"] = list(zip(plan.rows, plan.cols))
+                out.update(drive_ird_plan(node, proxy, res.posterior.samples, reference, status))
                 out["reference"] = reference
-                stamp = plan.path.header.stamp
-                spin_until(node, lambda: any(s.done and s.plan_stamp == stamp for s in status), timeout=60,
-                           what="Rob finishing the plan")
-                out["final"] = [s for s in status if s.done and s.plan_stamp == stamp][-1]
-                out["statuses"] = [s for s in status if s.plan_stamp == stamp]
             finally:
                 node.destroy_node()
     return out
