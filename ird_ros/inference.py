@@ -74,6 +74,7 @@ Questions to the designer (IRD spec section 7; the evidence's lifetime is docume
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -92,12 +93,19 @@ from ird_core import queries as core_queries
 from ird_ros import conversions as conv
 from ird_ros import names
 from ird_ros.inference_queries import Evidence, QueryJob, resample_seed, run_query
-from ird_ros.node_main import exit_process, run_node
+from ird_ros.node_main import Arrivals, exit_process, run_node
 from ird_ros.node_params import Param, declare_all
 from ird_ros.offload import Offload, OffloadError, service_qos
 
 __all__ = ["InferenceNode", "InferenceJob", "ExtraWorld", "ResampleJob", "job_observations", "SamplerSettings", "PARAMETERS", "proxy_map_terms",
            "run_inference", "run_resample", "main"]
+
+MAP_WAIT = 10.0  # seconds /ird/query waits for the latched test map it defaults to (discovery lags)
+
+
+class _MapMissing(ValueError):
+    """No test map with the posterior's features has arrived (yet)."""
+
 
 PARAMETERS: dict[str, Param] = {
     "default_prior_sigma": Param(1.0, "Prior standard deviation used when a request has prior_sigma 0",
@@ -317,6 +325,7 @@ class InferenceNode(Node):
         self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
         self.evidence = Evidence()
         self.maps: dict[str, conv.FeatureGridData] = {}
+        self._map_arrivals = Arrivals(self)
         self.proxy: ProxyReward | None = None
         self._queries_pub = self.create_publisher(QueryRecord, names.TOPIC_QUERIES, names.history_qos())
         for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
@@ -452,6 +461,7 @@ class InferenceNode(Node):
             self.maps[topic] = conv.feature_grid_from_msg(msg, field=topic)
         except ValueError as exc:
             self.get_logger().error(f"ignoring a bad map: {exc}")
+        self._map_arrivals.notify()
 
     def _on_proxy(self, msg: ProxyReward) -> None:
         self.proxy = msg
@@ -469,7 +479,7 @@ class InferenceNode(Node):
             grid = self.maps.get(topic)
             if grid is not None and grid.layers == names_:
                 return grid
-        raise ValueError(f"map: empty, and no test map with the posterior's features {list(names_)} was received")
+        raise _MapMissing(f"map: empty, and no test map with the posterior's features {list(names_)} was received")
 
     def validate_query(self, req: ProposeQuery.Request) -> tuple[QueryJob, conv.FeatureGridData]:
         """The worker job of a query request and its map (``ValueError`` naming the field)."""
@@ -502,7 +512,14 @@ class InferenceNode(Node):
         try:
             if ev.resampling:
                 raise ValueError("busy: re-sampling the posterior with an answer; ask again when it is published")
-            job, grid = self.validate_query(req)
+            deadline = time.monotonic() + MAP_WAIT
+            while True:
+                try:
+                    job, grid = self.validate_query(req)
+                    break
+                except _MapMissing:
+                    if time.monotonic() >= deadline or not await self._map_arrivals.wait(deadline - time.monotonic()):
+                        raise
         except ValueError as exc:
             response.success, response.message = False, str(exc)
             return response

@@ -255,3 +255,34 @@ class WorkerPool:
     def shutdown(self) -> None:
         """Cancel queued work, terminate running workers, return at once."""
         self._kill()
+
+
+class Arrivals:
+    """Lets an async service callback wait, without blocking the executor, until a latched
+    input arrives: under load a request can reach a node before DDS has delivered the latched
+    map it defaults to, and a short bounded wait answers it instead of refusing it.
+
+    ``notify()`` from the input's subscription callback; ``await wait(timeout)`` in the service
+    callback (True when something arrived, False at the timeout).
+    """
+
+    def __init__(self, node: Any) -> None:
+        self._node = node
+        self._waiters: list[Any] = []
+
+    def notify(self) -> None:
+        waiters, self._waiters = self._waiters, []
+        for future in waiters:
+            if not future.done():
+                future.set_result(True)
+
+    async def wait(self, timeout: float) -> bool:
+        from rclpy.task import Future
+
+        future = Future()
+        self._waiters.append(future)
+        timer = self._node.create_timer(timeout, lambda: future.done() or future.set_result(False))
+        try:
+            return bool(await future)
+        finally:
+            self._node.destroy_timer(timer)
