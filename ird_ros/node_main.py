@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import faulthandler
 import multiprocessing
 import os
 import signal
@@ -95,6 +96,9 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+    # A crash inside rclpy/DDS (seen rarely at shutdown under load) then leaves the Python
+    # stacks of every thread in the node's output, where the launcher and the tests show it.
+    faulthandler.enable()
     # Before rclpy.init: rclpy's own handlers (which wake the executor) chain to these.
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
