@@ -180,9 +180,11 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     true_cells = lavaland.TRUE_TERRAIN_REWARD[inst.test_labels].astype(np.float64)
     out.append(_result(inst, "oracle", 0, mdp.optimal_path(test, true_cells)[0]))
 
-    proxy_features = lavaland.proxy_feature_expectations(inst)
-    reference = proxy_features / (inst.train_horizon + 1)
-    proxy = inference.ProxyObservation(inst.proxy_weights, lavaland.train_mdp(inst), proxy_features)
+    # Sample-Z's proxy counts are computed once, in the proxy's own space (latent_classifier),
+    # and shared by every re-sample, like the proxy's own counts.
+    num_proxy = inference.DEFAULT_NUM_PROXY_SAMPLES if spec.method == "sample_z" else None
+    proxy, = lavaland.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
+    reference = proxy.proxy_features / (inst.train_horizon + 1)
     options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
 
     def sample(evidence: list, round_index: int, initial: "inference.Posterior | None") -> inference.Posterior:

@@ -86,104 +86,13 @@ posterior model), ``ird_core.sampler`` (Laplace start, HMC, ``Posterior``) and
 
 from __future__ import annotations
 
-from typing import Callable
-
+# The public namespace: every name of the three modules (their ``__all__``) and the request
+# check, so a name is listed once, where it is defined.
+from ird_core import evidence, likelihoods, sampler
 from ird_core.checks import check_posterior_arguments
-from ird_core.evidence import (
-    ChoiceObservation,
-    Observation,
-    PosteriorModel,
-    ProxyObservation,
-    ProxyTerm,
-    joint_log_posterior,
-    joint_log_posterior_grad,
-    log_posterior,
-    log_posterior_grad,
-    make_joint_model,
-    make_posterior_model,
-)
-from ird_core.likelihoods import (
-    DEFAULT_NUM_PROXY_SAMPLES,
-    METHODS,
-    PROXY_BATCH,
-    choice_log_likelihood,
-    choice_log_likelihood_and_grad,
-    log_prior,
-    log_prior_grad,
-    maxent_z_log_likelihood,
-    maxent_z_log_likelihood_grad,
-    proxy_feature_counts,
-    proxy_prior_samples,
-    sample_z_log_likelihood,
-    sample_z_log_likelihood_and_grad,
-    sample_z_log_likelihood_grad,
-    sample_z_scores,
-)
-from ird_core.sampler import (
-    DEFAULT_INIT_SCALE,
-    DEFAULT_KERNEL,
-    DEFAULT_MAX_LEAPFROG,
-    DEFAULT_MIN_ITERATIONS,
-    DEFAULT_NUM_CHAINS,
-    DEFAULT_TRAJECTORY_LENGTH,
-    DEFAULT_WARM_MIN_ITERATIONS,
-    DEFAULT_WARM_WARMUP,
-    DEFAULT_WARMUP,
-    DEFAULT_WARMUP_MAX_LEAPFROG,
-    R_HAT_CONVERGED,
-    Posterior,
-    RunUntil,
-    laplace_approximation,
-    pool_draws,
-    sample_joint_posterior,
-    sample_posterior,
-)
+from ird_core.evidence import *  # noqa: F401,F403
+from ird_core.likelihoods import *  # noqa: F401,F403
+from ird_core.sampler import *  # noqa: F401,F403
 
-__all__ = [
-    "METHODS",
-    "DEFAULT_NUM_PROXY_SAMPLES",
-    "DEFAULT_NUM_CHAINS",
-    "DEFAULT_WARMUP",
-    "DEFAULT_WARM_WARMUP",
-    "DEFAULT_WARM_MIN_ITERATIONS",
-    "DEFAULT_MIN_ITERATIONS",
-    "DEFAULT_KERNEL",
-    "DEFAULT_MAX_LEAPFROG",
-    "DEFAULT_TRAJECTORY_LENGTH",
-    "DEFAULT_WARMUP_MAX_LEAPFROG",
-    "DEFAULT_INIT_SCALE",
-    "R_HAT_CONVERGED",
-    "PROXY_BATCH",
-    "log_prior",
-    "log_prior_grad",
-    "maxent_z_log_likelihood",
-    "maxent_z_log_likelihood_grad",
-    "sample_z_scores",
-    "sample_z_log_likelihood",
-    "sample_z_log_likelihood_grad",
-    "sample_z_log_likelihood_and_grad",
-    "choice_log_likelihood",
-    "choice_log_likelihood_and_grad",
-    "proxy_prior_samples",
-    "proxy_feature_counts",
-    "check_posterior_arguments",
-    "ProxyObservation",
-    "ChoiceObservation",
-    "Observation",
-    "ProxyTerm",
-    "PosteriorModel",
-    "make_joint_model",
-    "make_posterior_model",
-    "joint_log_posterior",
-    "joint_log_posterior_grad",
-    "log_posterior",
-    "log_posterior_grad",
-    "laplace_approximation",
-    "Posterior",
-    "pool_draws",
-    "sample_joint_posterior",
-    "sample_posterior",
-    "RunUntil",
-]
+__all__ = [*likelihoods.__all__, *evidence.__all__, *sampler.__all__, "check_posterior_arguments"]
 
-ProgressFn = Callable[[int, int], None]

@@ -195,7 +195,8 @@ def laplace_approximation(model: PosteriorModel, max_iterations: int = 30
         if values[best] <= value:
             break
         w = candidates[best]
-    _, _, hessian = _gradient_and_hessian(model, w)
+    else:  # out of iterations after a step: the last Hessian is not at w (after a break it is)
+        _, _, hessian = _gradient_and_hessian(model, w)
     eigval, eigvec = np.linalg.eigh(-hessian)
     cov = (eigvec / np.maximum(eigval, floor)) @ eigvec.T
     return w, 0.5 * (cov + cov.T)

@@ -106,6 +106,8 @@ class DesignerNode(Node):
         self.answer_timeout, self.retry_period = float(p["answer_timeout"]), float(p["retry_period"])
         self.designer = SimulatedDesigner(float(p["beta"]), int(p["seed"]))
         self.records: list[QueryRecord] = []  # every /ird/queries message, in arrival order
+        self._events_key: tuple[int, int] | None = None
+        self._events: list[qr.QueryEvent] = []
         self.terrain: conv.TerrainGridData | None = None
         self.terrain_ns = 0  # header stamp (ns) of the world's terrain
         self.proxy: ProxyReward | None = None
@@ -175,6 +177,9 @@ class DesignerNode(Node):
         cells); records stamped before the world's terrain belong to a forgotten world."""
         if self.terrain is None:
             return []
+        key = (len(self.records), self.terrain_ns)  # the timers call this often: decode on change only
+        if self._events_key == key:
+            return self._events
         out = []
         for msg in self.records:
             if _stamp_ns(msg.header.stamp) < self.terrain_ns:
@@ -184,6 +189,7 @@ class DesignerNode(Node):
                                              field=names.TOPIC_QUERIES))
             except ValueError as exc:
                 self.get_logger().error(f"ignoring a bad query record: {exc}")
+        self._events_key, self._events = key, out
         return out
 
     def _update(self) -> None:

@@ -354,19 +354,8 @@ class InferenceNode(Node):
         Raises:
             ValueError: naming the request field (from the decoders and the library's checks).
         """
-        train = conv.feature_grid_from_msg(req.training_map, field="training_map", max_abs=MAX_ABS_FEATURE)
-        h, w, d = train.shape
-        if h * w * d > self.max_map_values:
-            raise ValueError(f"training_map.data: {h * w * d} values exceed max_map_values={self.max_map_values}")
-        proxy = None
-        if len(req.proxy_map.layers) or len(req.proxy_map.data):
-            proxy = conv.feature_grid_from_msg(req.proxy_map, field="proxy_map", max_abs=MAX_ABS_FEATURE)
-            if proxy.shape[:2] != (h, w):
-                raise ValueError(f"proxy_map.info: a {proxy.shape[0]}x{proxy.shape[1]} map does not match "
-                                 f"the {h}x{w} training_map")
-            if proxy.features.size > self.max_map_values:
-                raise ValueError(f"proxy_map.data: {proxy.features.size} values exceed max_map_values")
-        start = core_planning.check_start((req.start_row, req.start_col), h, w)
+        train, proxy, start = self._world_maps("", req)
+        d = train.shape[2]
         if req.horizon > self.max_horizon:
             raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
         if req.num_samples > self.max_num_samples:
@@ -391,28 +380,37 @@ class InferenceNode(Node):
         )
         return job, train.layers
 
-    def _training_world(self, i: int, msg: Any, layers: tuple[str, ...], default_weights: np.ndarray) -> ExtraWorld:
-        """``training_worlds[i]`` validated (ValueError naming ``training_worlds[i].<field>``)."""
-        key = f"training_worlds[{i}]"
-        train = conv.feature_grid_from_msg(msg.training_map, field=f"{key}.training_map", max_abs=MAX_ABS_FEATURE)
+    def _world_maps(self, prefix: str, msg: Any, layers: tuple[str, ...] | None = None
+                    ) -> tuple[conv.FeatureGridData, conv.FeatureGridData | None, tuple[int, int]]:
+        """A world's decoded training map, proxy map (or None) and start, for the request itself
+        (``prefix`` "") and each ``training_worlds[i].``; errors name ``<prefix><field>``."""
+        train = conv.feature_grid_from_msg(msg.training_map, field=f"{prefix}training_map", max_abs=MAX_ABS_FEATURE)
         h, w, d = train.shape
-        if train.layers != layers:
-            raise ValueError(f"{key}.training_map.layers: {list(train.layers)} must be the request's training_map "
+        if layers is not None and train.layers != layers:
+            raise ValueError(f"{prefix}training_map.layers: {list(train.layers)} must be the request's training_map "
                              f"layers {list(layers)}")
         if h * w * d > self.max_map_values:
-            raise ValueError(f"{key}.training_map.data: {h * w * d} values exceed max_map_values={self.max_map_values}")
+            raise ValueError(f"{prefix}training_map.data: {h * w * d} values exceed "
+                             f"max_map_values={self.max_map_values}")
         proxy = None
         if len(msg.proxy_map.layers) or len(msg.proxy_map.data):
-            proxy = conv.feature_grid_from_msg(msg.proxy_map, field=f"{key}.proxy_map", max_abs=MAX_ABS_FEATURE)
+            proxy = conv.feature_grid_from_msg(msg.proxy_map, field=f"{prefix}proxy_map", max_abs=MAX_ABS_FEATURE)
             if proxy.shape[:2] != (h, w):
-                raise ValueError(f"{key}.proxy_map.info: a {proxy.shape[0]}x{proxy.shape[1]} map does not match "
-                                 f"the {h}x{w} {key}.training_map")
+                raise ValueError(f"{prefix}proxy_map.info: a {proxy.shape[0]}x{proxy.shape[1]} map does not match "
+                                 f"the {h}x{w} {prefix}training_map")
             if proxy.features.size > self.max_map_values:
-                raise ValueError(f"{key}.proxy_map.data: {proxy.features.size} values exceed max_map_values")
+                raise ValueError(f"{prefix}proxy_map.data: {proxy.features.size} values exceed max_map_values")
         try:
             start = core_planning.check_start((msg.start_row, msg.start_col), h, w)
         except ValueError as exc:
-            raise ValueError(f"{key}.{exc}") from None
+            raise ValueError(f"{prefix}{exc}") from None
+        return train, proxy, start
+
+    def _training_world(self, i: int, msg: Any, layers: tuple[str, ...], default_weights: np.ndarray) -> ExtraWorld:
+        """``training_worlds[i]`` validated (ValueError naming ``training_worlds[i].<field>``)."""
+        key = f"training_worlds[{i}]"
+        train, proxy, start = self._world_maps(key + ".", msg, layers)
+        d = train.shape[2]
         if not 0 < msg.horizon <= self.max_horizon:
             raise ValueError(f"{key}.horizon: must be in [1, max_horizon={self.max_horizon}], got {msg.horizon}")
         weights = np.asarray(msg.proxy_weights, dtype=np.float64) if len(msg.proxy_weights) else default_weights

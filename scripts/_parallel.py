@@ -17,11 +17,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
 from typing import Any, Callable, Sequence, TypeVar  # noqa: E402
 
-from tqdm import tqdm  # noqa: E402
+import _progress  # noqa: E402  (scripts/ is on sys.path: the scripts import this module from there)
 
 __all__ = ["add_arguments", "describe", "progress_bar", "map_local", "map_dask", "parallel_map"]
 
@@ -48,10 +47,9 @@ def describe(workers: int, scheduler: str | None) -> str:
     return f"Dask {scheduler}" if scheduler else f"{workers} local worker(s)"
 
 
-def progress_bar(total: int, desc: str = "trials") -> tqdm:
-    """A tqdm bar on stderr; off a terminal (logs) it redraws at most every 10 s."""
-    return tqdm(total=total, desc=desc, unit="trial", file=sys.stderr, dynamic_ncols=True,
-                mininterval=0.5 if sys.stderr.isatty() else 10.0)
+def progress_bar(total: int, desc: str = "trials") -> Any:
+    """The scripts' one progress bar (``_progress.progress_bar``), counting trials."""
+    return _progress.progress_bar(total, desc, unit="trial")
 
 
 def map_local(fn: Callable[[T], R], items: Sequence[T], workers: int, progress: Any = None) -> list[R]:

@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from ird_core import lavaland
-from ird_core.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
+from ird_core.terrain import NUM_TERRAINS, Terrain
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -86,9 +86,8 @@ def test_rounds_table_has_a_row_per_plan_with_the_answer() -> None:
 
 
 def test_describe_counts_names_lava_gold_target() -> None:
-    counts = np.arange(NUM_TERRAINS)
-    text = dr.describe_counts(counts)
-    assert text == ", ".join(f"{TERRAIN_NAMES[t]} {int(t)}" for t in (Terrain.LAVA, Terrain.GOLD, Terrain.TARGET))
+    counts = np.arange(NUM_TERRAINS)  # dirt 0, grass 1, target 2, lava 3, gold 4
+    assert dr.describe_counts(counts) == "lava 3, gold 4, target 2"
 
 
 @pytest.mark.parametrize("num_rounds", [0, 1, 3])

@@ -11,7 +11,6 @@ A missing browser or driver fails the test (apt-get install -y chromium chromium
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -30,13 +29,6 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-
                   "--no-first-run", "--disable-background-networking", "--disable-component-update",
                   "--disable-sync", "--window-size=1280,1000")
 WAIT = 60.0  # seconds a page condition may take (the page updates on WebSocket pushes)
-
-
-def free_port() -> int:
-    """A loopback port free right now (the node must know it before it starts)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -65,8 +57,8 @@ def graph(ros_domain: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     params["world"]["ros__parameters"].update(condition="side_effects", seed=SEED, height=SIZE, width=SIZE,
                                               horizon=HORIZON)
     params["inference"]["ros__parameters"].update(num_chains=4)
-    port = free_port()
-    params["designer"]["ros__parameters"].update(mode="web", host="127.0.0.1", port=port)
+    # Port 0: the server binds a free port itself (no race with other processes); its URL is logged.
+    params["designer"]["ros__parameters"].update(mode="web", host="127.0.0.1", port=0)
     params_file = tmp / "graph.yaml"
     params_file.write_text(yaml.safe_dump(params))
     nodes = [(name, ["-m", f"ird_ros.{name}", "--ros-args", "--params-file", str(params_file)])
@@ -74,8 +66,8 @@ def graph(ros_domain: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     with running_nodes(ros_domain, *nodes) as procs:
         designer = procs[-1]
         line = designer.wait_for_output("designer web page at", timeout=60.0)
-        url = f"http://127.0.0.1:{port}/"
-        assert url in line, line
+        url = line.split("designer web page at ", 1)[1].split()[0]
+        assert url.startswith("http://127.0.0.1:") and not url.startswith("http://127.0.0.1:0/"), line
         yield {"url": url, "procs": procs}
 
 
