@@ -70,13 +70,13 @@ DEFAULT_DESIGNER_BETA: float = 1.0
 
 
 # The Lavaland experiments' small settings, shared so that both experiments stay comparable.
-_SMALL = experiments.TrialSpec("side_effects", 0)
+_SMALL = experiments.TrialSpec("side_effects", 0, **experiments.QUICK)
 
 
 @dataclass(frozen=True)
 class ActiveSpec:
     """Everything one trial depends on. Sizes and sampler settings default to the experiments'
-    small settings (:class:`ird_core.experiments.TrialSpec`: 8x8, T = 12, ``obs_dim`` 10,
+    small settings (:data:`ird_core.experiments.QUICK`: 8x8, T = 12, ``obs_dim`` 10,
     64 samples, beta 50, 4 chains), with MaxEnt-Z (its gradient is cheap)."""
 
     condition: str
@@ -315,4 +315,4 @@ def gap_closed(summaries: "list[ActiveSummary]", condition: str, strategy: str, 
         low, high, value = by[condition, "literal", 0], by[condition, "oracle", 0], by[condition, strategy, count]
     except KeyError:
         return math.nan
-    return (value - low) / (high - low) if high > low else math.nan
+    return experiments.gap_share(low, high, value)

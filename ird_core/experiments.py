@@ -4,8 +4,12 @@ appendix factorial of min-granularity x reward baseline. Pure numpy/scipy, no RO
 One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
 
 1. ``literal``: the proxy's optimal path on the proxy's test features (for latent_classifier the
-   classifier outputs with the designer's weights), ``planning.plan_path(mode="literal")``.
-2. For each Z-approximation (``sample_z``, ``maxent_z``): ONE posterior (seeded from the trial
+   classifier outputs with the designer's weights), ``planning.plan_path(mode="literal")``
+   (the floor).
+2. ``oracle``: the optimal path under the TRUE reward (the instance's ``true_terrain_reward`` per
+   test cell), by exact dynamic programming: the ceiling, no path has a higher true return. A
+   world file without true rewards has no oracle row.
+3. For each Z-approximation (``sample_z``, ``maxent_z``): ONE posterior (seeded from the trial
    seed and the method), then from the same samples
    - the main-experiment IRD planner (Figure 4): :data:`MAIN_GRANULARITY` x
      :data:`MAIN_BASELINE` = ``per_step`` x ``training_features``. Why: it is the combination the
@@ -14,12 +18,13 @@ One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
      ``K`` samples (no MILP, no subsample), so the main result does not depend on a solver
      time limit;
    - the factorial: ``per_step`` and ``trajectory`` x ``initial_state``, ``training_features``,
-     ``log_z``. ``trajectory`` is the exact MILP/label search of ``ird_core.planning`` on the
-     first ``traj_samples`` posterior samples (draw-major pooled, so spread over the chains),
-     with a per-plan time limit; if the solver does not prove optimality in time, the trial
-     falls back to the ``per_step`` plan of the same samples and baseline and is flagged
-     (``fallback``), counted in the aggregated table.
-3. Outcomes on the executed path (Rob executes plans exactly, so the executed path is the
+     ``log_z``, BOTH granularities on the same first ``factorial_samples`` posterior samples
+     (draw-major pooled, so spread over the chains), so the granularity effect is not confounded
+     with the number of samples. ``trajectory`` is the exact label search/MILP of
+     ``ird_core.planning`` with a per-plan time limit; if the solver does not prove optimality in
+     time, the trial falls back to the ``per_step`` plan of the same samples and baseline and is
+     flagged (``fallback``), counted in the aggregated table.
+4. Outcomes on the executed path (Rob executes plans exactly, so the executed path is the
    plan's cells): touched lava, reached a target, true return (``ird_core.lavaland``).
 
 Seeding: trial ``i`` of a run with seed ``S`` uses instance seed ``S + i`` for every condition
@@ -38,7 +43,13 @@ they measure how the outcome varies with the posterior's randomness, not with th
 return uses the file's true rewards (NaN when the file gives none).
 
 Aggregation (:func:`aggregate`): fractions with 95% Wilson score intervals, mean true return
-with a 95% Student-t interval.
+with a 95% Student-t interval, and for every IRD planner the share of the literal-to-oracle
+return gap it closes (:func:`gap_closed`) with a 95% paired bootstrap interval over trials.
+
+Settings: :class:`TrialSpec`'s defaults are the paper's scale (15x15 maps, T = 30, 50-d
+observations); :data:`QUICK` is the small setting for a fast look (8x8, T = 12, 10-d). The
+sampler settings can differ per Z-approximation (:class:`SamplerSettings`,
+``TrialSpec.sample_z_sampler`` / ``maxent_z_sampler``; ``None`` = the shared fields).
 """
 
 from __future__ import annotations
@@ -53,15 +64,18 @@ from typing import Iterable, Sequence
 import numpy as np
 from scipy import stats
 
-from ird_core import inference, lavaland, planning, world_file
+from ird_core import inference, lavaland, mdp, planning, world_file
 
 __all__ = [
     "Z_METHODS",
+    "RUN_UNTIL_R_HAT",
     "GRANULARITIES",
     "BASELINES",
     "MAIN_GRANULARITY",
     "MAIN_BASELINE",
+    "SamplerSettings",
     "TrialSpec",
+    "QUICK",
     "TrialResult",
     "CellSummary",
     "trial_seed",
@@ -70,6 +84,8 @@ __all__ = [
     "run_trial",
     "wilson_interval",
     "t_interval",
+    "gap_share",
+    "gap_closed",
     "aggregate",
     "RESULT_COLUMNS",
     "TRIAL_COLUMNS",
@@ -82,19 +98,62 @@ MAIN_GRANULARITY = "per_step"
 MAIN_BASELINE = "training_features"
 
 
+#: Split R-hat at which a run-until-converged posterior stops (``SamplerSettings.max_iterations``):
+#: below the reported threshold ``inference.R_HAT_CONVERGED`` (1.1), so that stopping at the
+#: first good check does not put the reported values just under it.
+RUN_UNTIL_R_HAT: float = 1.05
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """One Z-approximation's MCMC settings (``inference.sample_joint_posterior``'s keywords).
+
+    ``max_iterations`` 0: a fixed-length run (``thin * ceil(num_samples / num_chains)``
+    iterations per chain after warm-up). Above 0: the same run, then extended until split R-hat
+    ``<= RUN_UNTIL_R_HAT`` and bulk ESS ``>= num_samples / 2`` or ``max_iterations`` iterations
+    per chain (``inference.RunUntil``; no time budget, so a trial stays a pure function of its
+    spec and reproduces bit for bit on any machine).
+    """
+
+    num_chains: int
+    warmup: int
+    thin: int
+    max_leapfrog: int
+    max_iterations: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("num_chains", "thin", "max_leapfrog"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        for name in ("warmup", "max_iterations"):
+            if int(getattr(self, name)) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+    def run_until(self) -> "inference.RunUntil | None":
+        """The ``until_converged`` criteria, or None for a fixed-length run."""
+        if self.max_iterations == 0:
+            return None
+        return inference.RunUntil(r_hat=RUN_UNTIL_R_HAT, min_ess=0.0, ess_per_sample=0.5,
+                                  max_iterations=self.max_iterations)
+
+
 @dataclass(frozen=True)
 class TrialSpec:
     """Everything one trial depends on (a trial is a pure function of this).
 
-    Defaults are the experiment defaults of ``scripts/run_experiments.py`` (chosen to fit 100
-    trials per cell of all four conditions into 15 minutes on 2 cores; see the README).
+    Defaults are the experiment defaults of ``scripts/run_experiments.py``: the paper's scale
+    (15x15 maps, T = 30, 50-d observations); :data:`QUICK` holds the small setting.
+    ``num_chains``, ``warmup``, ``thin``, ``max_leapfrog`` are shared by both Z-approximations
+    unless ``sample_z_sampler`` / ``maxent_z_sampler`` give that method its own
+    (:meth:`sampler`). Every method returns ``num_samples`` draws (the main IRD planner uses all
+    of them); the factorial uses the first ``factorial_samples`` for both granularities.
     """
 
     condition: str
     seed: int
-    size: int = 8
-    horizon: int = 12
-    obs_dim: int = 10
+    size: int = 15
+    horizon: int = 30
+    obs_dim: int = 50
     num_samples: int = 64
     beta: float = 50.0
     prior_sigma: float = 1.0
@@ -103,11 +162,32 @@ class TrialSpec:
     thin: int = 4
     max_leapfrog: int = 16
     num_proxy_samples: int = 100
-    traj_samples: int = 10
-    traj_time_limit: float = 2.0
+    factorial_samples: int = 16
+    traj_time_limit: float = 0.5
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
+    sample_z_sampler: SamplerSettings | None = SamplerSettings(4, 100, 4, 32, 300)
+    maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000)
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.factorial_samples <= self.num_samples:
+            raise ValueError(f"factorial_samples must be in 1..num_samples={self.num_samples}, "
+                             f"got {self.factorial_samples!r}")
+        for method in self.z_methods:
+            if method not in Z_METHODS:
+                raise ValueError(f"z_methods must be drawn from {Z_METHODS}, got {method!r}")
+
+    def sampler(self, method: str) -> SamplerSettings:
+        """``method``'s sampler settings: its own field if set, else the shared ones."""
+        own = getattr(self, f"{method}_sampler")
+        return own if own is not None else SamplerSettings(self.num_chains, self.warmup, self.thin, self.max_leapfrog)
+
+
+#: The small setting for a fast look (``run_experiments.py --quick``; ``ird_core.active``'s defaults).
+QUICK: dict = {"size": 8, "horizon": 12, "obs_dim": 10, "num_samples": 64, "num_chains": 4, "warmup": 50, "thin": 4,
+               "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_time_limit": 2.0,
+               "sample_z_sampler": None, "maxent_z_sampler": None}
 
 
 @dataclass(frozen=True)
@@ -162,11 +242,13 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) ->
     observations = lavaland.proxy_observations(
         inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
         spec.prior_sigma)
+    settings = spec.sampler(method)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return inference.sample_joint_posterior(
             observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
-            num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
+            num_chains=settings.num_chains, warmup=settings.warmup, thin=settings.thin,
+            max_leapfrog=settings.max_leapfrog, until_converged=settings.run_until())
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
@@ -178,45 +260,53 @@ def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
 
 
 def run_trial(spec: TrialSpec) -> list[TrialResult]:
-    """Run one trial: literal plan, and per Z-approximation one posterior and its IRD plans."""
+    """Run one trial: literal and oracle plans, and per Z-approximation one posterior and its IRD plans."""
     inst = trial_instance(spec)
     results: list[TrialResult] = []
     literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
     results.append(TrialResult("main", spec.condition, spec.seed, "literal", "", "literal", "none",
                                *_outcome(inst, literal.cells), literal.objective, literal.solver, False,
                                0.0, math.nan, math.nan, literal.cells))
-    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     test = lavaland.test_mdp(inst)
+    if inst.true_terrain_reward is not None:
+        true_cells = np.asarray(inst.true_terrain_reward, dtype=np.float64)[inst.test_labels]
+        cells, value = mdp.optimal_path(test, true_cells)
+        oracle = tuple((int(r), int(c)) for r, c in cells)
+        results.append(TrialResult("main", spec.condition, spec.seed, "oracle", "", "oracle", "none",
+                                   *_outcome(inst, oracle), value, "dp", False, 0.0, math.nan, math.nan, oracle))
+    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     for method in spec.z_methods:
         t0 = time.perf_counter()
         post = _posterior(spec, inst, method)
         seconds = time.perf_counter() - t0
         diag = (seconds, post.r_hat_max, post.acceptance_rate)
-        plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}
-        grans = GRANULARITIES if spec.factorial else (MAIN_GRANULARITY,)
-        bases = BASELINES if spec.factorial else (MAIN_BASELINE,)
-        for gran in grans:
-            for base in bases:
-                if gran == "per_step":
-                    plans[gran, base] = (planning.plan_path(test, post.samples, "per_step", base, reference), False)
-                    continue
-                subset = post.samples[: spec.traj_samples]
-                try:
-                    plan = planning.plan_path(test, subset, "trajectory", base, reference,
-                                              time_limit=spec.traj_time_limit)
-                    plans[gran, base] = (plan, False)
-                except RuntimeError:
-                    plans[gran, base] = (planning.plan_path(test, subset, "per_step", base, reference), True)
-        main, _ = plans[MAIN_GRANULARITY, MAIN_BASELINE]
+        main = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference)
         results.append(TrialResult("main", spec.condition, spec.seed, f"ird_{method}", method,
                                    MAIN_GRANULARITY, MAIN_BASELINE, *_outcome(inst, main.cells),
                                    main.objective, main.solver, False, *diag, main.cells))
         if spec.factorial:
+            plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_time_limit)
             for (gran, base), (plan, fallback) in plans.items():
                 results.append(TrialResult("factorial", spec.condition, spec.seed, f"{method}/{gran}/{base}",
                                            method, gran, base, *_outcome(inst, plan.cells), plan.objective,
                                            plan.solver, fallback, *diag, plan.cells))
     return results
+
+
+def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarray, time_limit: float
+                     ) -> dict[tuple[str, str], tuple[planning.Plan, bool]]:
+    """Every granularity x baseline plan of the same ``(N, d)`` samples, with its fallback flag
+    (the trajectory solver hit ``time_limit``: the per_step plan of the same samples stands in)."""
+    plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}
+    for base in BASELINES:
+        plans["per_step", base] = (planning.plan_path(test, samples, "per_step", base, reference), False)
+    for base in BASELINES:
+        try:
+            plans["trajectory", base] = (planning.plan_path(test, samples, "trajectory", base, reference,
+                                                            time_limit=time_limit), False)
+        except RuntimeError:
+            plans["trajectory", base] = (plans["per_step", base][0], True)
+    return plans
 
 
 # --------------------------------------------------------------------------- statistics
@@ -250,10 +340,58 @@ def t_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float
     return mean, mean - half, mean + half
 
 
+def gap_share(literal: float | np.ndarray, oracle: float | np.ndarray, planner: float | np.ndarray
+              ) -> float | np.ndarray:
+    """Share of the literal-to-oracle gap a planner closes, ``(planner - literal) / (oracle -
+    literal)`` (1 = oracle, 0 = literal, negative = below literal); NaN where ``oracle <= literal``
+    (no gap to close). Elementwise on broadcastable arrays of mean returns."""
+    literal, oracle, planner = (np.asarray(v, dtype=np.float64) for v in (literal, oracle, planner))
+    gap = oracle - literal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(gap > 0, (planner - literal) / np.where(gap > 0, gap, 1.0), np.nan)
+    return float(share) if share.ndim == 0 else share
+
+
+def gap_closed(literal: Sequence[float], oracle: Sequence[float], planner: Sequence[float], seed: int = 0,
+               resamples: int = 2000, confidence: float = 0.95) -> tuple[float, float, float]:
+    """``(share, low, high)``: :func:`gap_share` of the mean true returns of paired trials and its
+    percentile bootstrap interval.
+
+    Args:
+        literal, oracle, planner: ``(n,)`` true returns, entry ``i`` of each from the same trial.
+        seed: seeds the bootstrap (same inputs and seed, same interval).
+        resamples: bootstrap resamples ``B``; each draws ``n`` trial indices with replacement and
+            keeps the three planners' returns of a trial together (paired).
+    Returns:
+        the share and the ``confidence`` percentile interval of the resampled shares (resamples
+        without a gap are dropped); all NaN when ``n = 0`` or the mean gap is ``<= 0``.
+    """
+    arrays = [np.asarray(v, dtype=np.float64).reshape(-1) for v in (literal, oracle, planner)]
+    if len({a.size for a in arrays}) != 1:
+        raise ValueError("literal, oracle, planner: must have the same length (paired trials), got "
+                         f"{[a.size for a in arrays]}")
+    x = np.stack(arrays)  # (3, n)
+    if resamples < 1:
+        raise ValueError(f"resamples must be >= 1, got {resamples!r}")
+    n = x.shape[1]
+    share = gap_share(*x.mean(axis=1)) if n else math.nan
+    if math.isnan(share):
+        return math.nan, math.nan, math.nan
+    index = np.random.default_rng(seed).integers(0, n, size=(resamples, n))  # (B, n)
+    boot = gap_share(*x[:, index].mean(axis=2))  # (B,)
+    boot = boot[~np.isnan(boot)]
+    if boot.size == 0:
+        return share, math.nan, math.nan
+    alpha = 100 * (1 - confidence) / 2
+    low, high = np.percentile(boot, [alpha, 100 - alpha])
+    return share, float(low), float(high)
+
+
 RESULT_COLUMNS: tuple[str, ...] = (
     "experiment", "condition", "planner", "z_approx", "granularity", "baseline", "trials",
     "lava_fraction", "lava_ci_low", "lava_ci_high", "target_fraction", "target_ci_low",
-    "target_ci_high", "mean_true_return", "return_ci_low", "return_ci_high", "fallbacks",
+    "target_ci_high", "mean_true_return", "return_ci_low", "return_ci_high", "gap_closed", "gap_ci_low",
+    "gap_ci_high", "fallbacks",
     "mean_infer_seconds", "max_r_hat", "nonconverged")
 
 TRIAL_COLUMNS: tuple[str, ...] = (
@@ -280,6 +418,9 @@ class CellSummary:
     mean_true_return: float
     return_ci_low: float
     return_ci_high: float
+    gap_closed: float  # share of the literal-to-oracle gap (gap_closed()); NaN for literal and oracle
+    gap_ci_low: float
+    gap_ci_high: float
     fallbacks: int
     mean_infer_seconds: float
     max_r_hat: float
@@ -287,6 +428,17 @@ class CellSummary:
 
     def row(self) -> dict:
         return dataclasses.asdict(self)
+
+
+def _paired_gap(groups: dict, condition: str, rs: list[TrialResult]) -> tuple[float, float, float]:
+    """:func:`gap_closed` of IRD results ``rs`` against the main literal and oracle of their
+    condition, over the seeds all three have; NaN without them (literal and oracle rows too)."""
+    literal, oracle = groups.get(("main", condition, "literal")), groups.get(("main", condition, "oracle"))
+    if not rs[0].z_approx or literal is None or oracle is None:
+        return math.nan, math.nan, math.nan
+    by = [{r.seed: r.true_return for r in g} for g in (literal, oracle, rs)]
+    seeds = sorted(set(by[0]) & set(by[1]) & set(by[2]))
+    return gap_closed(*([b[s] for s in seeds] for b in by))
 
 
 def aggregate(results: Iterable[TrialResult]) -> list[CellSummary]:
@@ -300,10 +452,11 @@ def aggregate(results: Iterable[TrialResult]) -> list[CellSummary]:
         lava = sum(r.touched_lava for r in rs)
         target = sum(r.reached_target for r in rs)
         mean, lo, hi = t_interval([r.true_return for r in rs])
+        gap = _paired_gap(groups, condition, rs)
         rhats = [r.r_hat_max for r in rs if not math.isnan(r.r_hat_max)]
         out.append(CellSummary(
             experiment, condition, planner, rs[0].z_approx, rs[0].granularity, rs[0].baseline, n,
-            lava / n, *wilson_interval(lava, n), target / n, *wilson_interval(target, n), mean, lo, hi,
+            lava / n, *wilson_interval(lava, n), target / n, *wilson_interval(target, n), mean, lo, hi, *gap,
             sum(r.fallback for r in rs),
             float(np.mean([r.infer_seconds for r in rs])),
             max(rhats) if rhats else math.nan,

@@ -39,13 +39,20 @@ benchmark (``scripts/bench_inference.py``):
    weights) and one batched line search. The inverse negative Hessian at the MAP (eigenvalues
    floored) is the initial preconditioner: posterior standard deviations span ~0.02 to ~1 across
    directions, and a dense 50-d metric cannot be learnt from scratch in a short warm-up.
+   At the experiments' beta = 50 the Sample-Z log density has creases ~1/beta wide and Newton
+   can stall far from the mode (latent_raw, 100 proxies: log density -2.1 near ``w = 0`` against
+   +33.4 at the mode). A stalled Newton (no ascent while its decrement is above 1e-3) is followed
+   by L-BFGS with exact gradients, and the covariance's axes are narrowed to the measured extent
+   of the log density along them (``_profile_widths``): the Hessian at a crease overstated it up
+   to 1000x, which held HMC's step at ~5e-4. Smooth posteriors (MaxEnt-Z) never take this path.
 2. ``num_chains`` (16) chains start at ``mode + 2 L z`` (``L L^T`` the Laplace covariance), i.e.
    overdispersed relative to the Laplace approximation, in the spirit of Gelman & Rubin (1992).
    Starting from the prior ``N(0, sigma^2 I)`` (``init="prior"``, available) is more
    conservative, but in 50-d the prior mass is hundreds of nats away from the posterior and the
    chains need far longer warm-ups to get there. R-hat is computed on post-warm-up draws only,
    rank-normalised and folded, so chains that disagree in location or in scale are both caught.
-3. HMC (``kernel="hmc"``; ``"mala"`` and ``"rwm"`` are available) with a dense metric: a shared
+3. HMC (``kernel="hmc"``; ``"mala"``, ``"rwm"`` and the gradient-free ``"elliptical"`` slice
+   sampler around the adapted Gaussian are available) with a dense metric: a shared
    step size adapted by dual averaging towards acceptance 0.8 (chain-averaged acceptance
    probability), trajectories of 1.5 preconditioned units (at most ``DEFAULT_MAX_LEAPFROG``
    leapfrog steps, per-chain step jitter +-10%), and Stan-style windows that re-estimate the

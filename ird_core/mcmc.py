@@ -1,6 +1,6 @@
 """Batched Markov chain Monte Carlo: many chains advanced together as one batch.
 
-The kernels (RWM, MALA, HMC) are ``init``/``step`` pairs in ``ird_core.mcmc_kernels``, chosen by
+The kernels (RWM, MALA, HMC, elliptical slice) are ``init``/``step`` pairs in ``ird_core.mcmc_kernels``, chosen by
 name from ``KERNEL_TABLE``; this module adapts their parameters in a warm-up and runs them.
 Every step makes ONE batched ``log_density`` call on all ``C`` chains (``L`` calls for HMC with
 ``L`` leapfrog steps); positions are ``(C, d)`` arrays throughout.
@@ -90,7 +90,8 @@ ProgressFn = Callable[[int, int], None]
 
 
 def estimate_preconditioner(draws: np.ndarray, kind: str,
-                            reference: "Preconditioner | None" = None) -> Preconditioner:
+                            reference: "Preconditioner | None" = None,
+                            discount_autocorrelation: bool = True) -> Preconditioner:
     """Covariance of warm-up draws, shrunk towards the current preconditioner.
 
     The draws are whitened by ``reference`` (``u = L_ref^{-1} x``); their pooled covariance ``S``
@@ -99,11 +100,17 @@ def estimate_preconditioner(draws: np.ndarray, kind: str,
     worth of information, and a sample covariance from ``n_eff ~ d`` draws has eigenvalues off by
     factors ``(1 +- sqrt(d / n_eff))^2``); the result is mapped back, ``M = L_ref S* L_ref^T``.
     ``diag`` keeps only the variances (in the original coordinates), shrunk the same way.
+    The pooled mean of the draws becomes the preconditioner's ``mean``.
 
     Args:
         draws: ``(C, n, d)`` warm-up draws of ``C`` chains (``C n >= 2``), or ``(n, d)``.
         kind: one of ``PRECONDITIONERS``.
         reference: the preconditioner the draws were made with (default the identity).
+        discount_autocorrelation: weigh the shrinkage by the draws' ESS (default) or by their
+            number. The elliptical kernel uses the number: its early draws mix slowly exactly
+            because its Gaussian is off, and an ESS-weighted shrinkage back towards that
+            Gaussian then keeps it off (measured on a 50-d Gaussian: R-hat 1.22 after 1000
+            draws against ~1.0 once the Gaussian is learnt).
     Returns:
         The preconditioner.
     """
@@ -115,14 +122,16 @@ def estimate_preconditioner(draws: np.ndarray, kind: str,
     if x.ndim != 3 or x.shape[0] * x.shape[1] < 2 or not np.all(np.isfinite(x)):
         raise ValueError(f"draws: expected finite values of shape (C, n, d), C n >= 2, got {np.shape(draws)}")
     c, n, dim = x.shape
+    mean = x.reshape(-1, dim).mean(axis=0)  # the elliptical kernel's centre
     if kind == "identity":
-        return Preconditioner.identity(dim)
+        return Preconditioner(np.eye(dim), "identity", mean)
     ref = Preconditioner.identity(dim) if reference is None else reference
     if kind == "diag":
         ref = Preconditioner(np.diag(np.sqrt(np.diag(ref.cov))), "diag")
     u = ref.whiten(x.reshape(c * n, dim)).reshape(c, n, dim)
     # Independent starting points make the pooled draws worth at least C independent ones.
-    n_eff = float(c * n) if n < 4 else float(np.clip(np.nanmean(effective_sample_size(u)), c, c * n))
+    n_eff = float(c * n) if n < 4 or not discount_autocorrelation else \
+        float(np.clip(np.nanmean(effective_sample_size(u)), c, c * n))
     centred = (u - u.reshape(-1, dim).mean(axis=0)).reshape(-1, dim)
     # Variances: shrink towards their mean (Ledoit-Wolf weight for n_eff draws).
     centred2 = centred**2
@@ -132,7 +141,7 @@ def estimate_preconditioner(draws: np.ndarray, kind: str,
     lam = 1.0 if spread <= 0 else min(1.0, noise / spread)
     shrunk_var = (1.0 - lam) * var + lam * var.mean()
     if kind == "diag":
-        return Preconditioner(ref.chol * np.sqrt(shrunk_var)[None, :], "diag")
+        return Preconditioner(ref.chol * np.sqrt(shrunk_var)[None, :], "diag", mean)
     # Correlations: shrink the off-diagonal covariances towards zero (Ledoit-Wolf, diagonal target).
     cov = centred.T @ centred / len(centred)
     off = ~np.eye(dim, dtype=bool)
@@ -144,7 +153,7 @@ def estimate_preconditioner(draws: np.ndarray, kind: str,
     target = (1.0 - lam) * cov + lam * np.diag(var)
     scale = np.sqrt(shrunk_var / var)
     shrunk = scale[:, None] * target * scale[None, :]
-    return Preconditioner(ref.chol @ cholesky(shrunk, lower=True), "dense")
+    return Preconditioner(ref.chol @ cholesky(shrunk, lower=True), "dense", mean)
 
 
 
@@ -266,14 +275,16 @@ class WarmupState(NamedTuple):
 
 
 def warmup_update(warm: WarmupState, stage: WarmupStep, state: ChainState, info: StepInfo,
-                  preconditioner: str) -> WarmupState:
-    """Adapt after one warm-up iteration: step size from the chain-averaged acceptance; at a
-    window's end, the ``preconditioner`` kind from the window's pooled draws."""
-    adapt = warm.step_size.update(float(info.acceptance_probability.mean()))
+                  preconditioner: str, tune_step: bool = True) -> WarmupState:
+    """Adapt after one warm-up iteration: step size from the chain-averaged acceptance (unless
+    ``tune_step`` is False: a kernel without a step); at a window's end, the ``preconditioner``
+    kind from the window's pooled draws."""
+    adapt = warm.step_size.update(float(info.acceptance_probability.mean())) if tune_step else warm.step_size
     draws = warm.window_draws + (state.position,) if stage.collect else warm.window_draws
     if not stage.window_end:
         return WarmupState(adapt, warm.preconditioner, draws)
-    precond = estimate_preconditioner(np.stack(draws, axis=1), preconditioner, warm.preconditioner)
+    precond = estimate_preconditioner(np.stack(draws, axis=1), preconditioner, warm.preconditioner,
+                                      discount_autocorrelation=tune_step)
     # Restart the adaptation near the current step size: the new metric changes it.
     return WarmupState(DualAveraging.start(adapt.final_step, adapt.target, bias=1.0), precond)
 
@@ -420,7 +431,7 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     warmup_max_leapfrog = max_leapfrog if warmup_max_leapfrog is None else \
         _check_int("warmup_max_leapfrog", warmup_max_leapfrog, 1)
     target = kern.target_accept if target_accept is None else float(target_accept)
-    if not 0.0 < target < 1.0:
+    if kern.tunes_step and not 0.0 < target < 1.0:
         raise ValueError(f"target_accept: expected a value in (0, 1), got {target_accept!r}")
     if not (np.isfinite(trajectory_length) and trajectory_length > 0):
         raise ValueError(f"trajectory_length: expected a finite value > 0, got {trajectory_length!r}")
@@ -433,8 +444,8 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     state = kern.init(x0, log_density)
     if not np.all(np.isfinite(state.log_density)):
         raise ValueError("initial: log_density is not finite at every starting point")
-    step0, evaluations = find_initial_step(kern, state, precond, log_density, rng) if warmup > 0 else \
-        (kern.default_step(dim), 0)
+    step0, evaluations = find_initial_step(kern, state, precond, log_density, rng) \
+        if warmup > 0 and kern.tunes_step else (kern.default_step(dim), 0)
     evaluations += 1
     total = warmup + num_draws * thin
 
@@ -451,7 +462,7 @@ def sample_chains(log_density: LogDensityFn, initial: np.ndarray, num_draws: int
     for it, stage in enumerate(warmup_schedule(warmup, adapt_preconditioner)):
         state, info = transition(state, warm.step_size.step, warm.preconditioner,
                                  warmup_max_leapfrog if stage.short else max_leapfrog)
-        warm = warmup_update(warm, stage, state, info, preconditioner)
+        warm = warmup_update(warm, stage, state, info, preconditioner, kern.tunes_step)
         if progress is not None:
             progress(it + 1, total)
 

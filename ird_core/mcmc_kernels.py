@@ -18,6 +18,14 @@ Kernels (one operator each):
 - ``rwm``: random-walk Metropolis, ``x' = x + h L z``.
 - ``mala``: Metropolis-adjusted Langevin, ``x' = x + h^2/2 M g(x) + h L z``.
 - ``hmc``: Hamiltonian Monte Carlo with ``L`` leapfrog steps in whitened coordinates.
+- ``elliptical``: generalised elliptical slice sampling (Murray, Adams & MacKay 2010; Nishihara,
+  Murray & Adams 2014): the target is written ``N(x; m, M) * exp(r(x))`` with the
+  preconditioner's Gaussian ``N(m, M)`` (its ``mean`` and covariance) and the residual
+  ``r = log p - log N(m, M)``, and a slice move on the ellipse through ``x`` and a draw of
+  ``N(m, M)`` leaves the target invariant. No gradient and no step size; it is never rejected,
+  and it shrinks its angle bracket until the residual clears the slice, one batched call per
+  shrink, so it stays valid and keeps moving on targets whose log density has creases (the
+  Sample-Z likelihood at large beta) where gradient kernels need tiny steps.
 
 Here ``z ~ N(0, I)``, ``M = L L^T`` is a preconditioner (an estimate of the posterior
 covariance) and ``h`` a step size. Random numbers are drawn in a fixed order (proposal normals,
@@ -39,6 +47,8 @@ __all__ = [
     "PRECONDITIONERS",
     "TARGET_ACCEPT",
     "DIVERGENCE_THRESHOLD",
+    "ELLIPTICAL_MAX_SHRINKS",
+    "ELLIPTICAL_WIDTH",
     "LogDensityFn",
     "Preconditioner",
     "ChainState",
@@ -55,6 +65,8 @@ __all__ = [
     "rwm_step",
     "mala_step",
     "hmc_step",
+    "elliptical_residual",
+    "elliptical_step",
     "get_kernel",
     "num_leapfrog_steps",
     "step_sizes",
@@ -81,10 +93,13 @@ class Preconditioner:
     Attributes:
         chol: ``(d, d)`` lower-triangular ``L`` (diagonal for ``diag``/``identity``).
         kind: one of ``PRECONDITIONERS``.
+        mean: ``(d,)`` centre of the Gaussian approximation ``N(mean, M)`` the ``elliptical``
+            kernel slices around (the gradient kernels use ``L`` only); None = the origin.
     """
 
     chol: np.ndarray
     kind: str = "dense"
+    mean: "np.ndarray | None" = None
 
     @classmethod
     def identity(cls, dim: int, scale: float = 1.0) -> "Preconditioner":
@@ -110,6 +125,11 @@ class Preconditioner:
     def times_cov(self, g: np.ndarray) -> np.ndarray:
         """``M g`` for a batch: ``(C, d) -> (C, d)``."""
         return (g @ self.chol) @ self.chol.T
+
+    @property
+    def centre(self) -> np.ndarray:
+        """``mean``, or zeros; ``(d,)``."""
+        return np.zeros(len(self.chol)) if self.mean is None else self.mean
 
 
 # --------------------------------------------------------------------------------------------
@@ -244,6 +264,8 @@ class Kernel(NamedTuple):
         default_step: ``dim -> h``, the optimal-scaling step for a standard normal target.
         step_jitter: range of a uniform factor applied to each chain's step at every iteration, or None.
         uses_trajectory: True if ``num_leapfrog`` follows the trajectory length (HMC).
+        needs_gradient: False if the step uses the log density only (RWM, elliptical).
+        tunes_step: False if the step has no step size to adapt (elliptical: it never rejects).
     """
 
     init: Callable[[np.ndarray, LogDensityFn], ChainState]
@@ -252,6 +274,8 @@ class Kernel(NamedTuple):
     default_step: Callable[[int], float]
     step_jitter: "tuple[float, float] | None" = None
     uses_trajectory: bool = False
+    needs_gradient: bool = True
+    tunes_step: bool = True
 
 
 def _evaluate(log_density: LogDensityFn, x: np.ndarray, need_grad: bool
@@ -327,15 +351,79 @@ def hmc_step(rng: np.random.Generator, state: ChainState, log_density: LogDensit
     return _metropolis_step(rng, state, proposal, log_p, grad, log_ratio, params.num_leapfrog)
 
 
+#: Shrinks of the elliptical bracket before a chain gives up and stays put (the bracket is then
+#: ``2 pi / 2^50`` wide; never reached on a continuous target, whose slice contains a
+#: neighbourhood of the current point).
+ELLIPTICAL_MAX_SHRINKS = 50
+
+
+#: The elliptical kernel slices around ``N(m, w^2 M)``, ``w`` this factor: wider than the
+#: covariance estimate so that chains can spread out when the estimate is too narrow (an
+#: ellipse never leaves the span of ``x - m`` and the reference draw), at the price of a few
+#: more shrinks when it is right.
+ELLIPTICAL_WIDTH: float = 1.5
+
+
+def elliptical_residual(log_p: np.ndarray, x: np.ndarray, precond: Preconditioner) -> np.ndarray:
+    """``r(x) = log p(x) - log N(x; m, w^2 M)`` up to a constant (``w = ELLIPTICAL_WIDTH``):
+    ``log p + |L^-1 (x - m)|^2 / (2 w^2)``; ``(C,), (C, d) -> (C,)``."""
+    u = precond.whiten(x - precond.centre)
+    return log_p + 0.5 * np.sum(u**2, axis=1) / ELLIPTICAL_WIDTH**2
+
+
+def elliptical_step(rng: np.random.Generator, state: ChainState, log_density: LogDensityFn,
+                    params: KernelParams) -> tuple[ChainState, StepInfo]:
+    """One generalised elliptical slice move of every chain (Murray et al. 2010, Figure 2).
+
+    With ``m``, ``L`` from ``params.preconditioner``, draws ``nu = L z`` and a slice level
+    ``y = r(x) + log U``, then proposes ``m + (x - m) cos t + nu sin t`` for ``t`` uniform on a
+    bracket ``[t - 2 pi, t]`` that shrinks towards 0 after each rejected angle, until
+    ``r > y``. Every shrink is one batched call on the chains still searching. The step size
+    and leapfrog count are ignored. Random numbers in a fixed order: ``z``, the uniforms of the
+    level, the first angles, then one uniform per searching chain per shrink.
+    """
+    x, precond = state.position, params.preconditioner
+    num_chains = x.shape[0]
+    centre = precond.centre
+    nu = ELLIPTICAL_WIDTH * precond.scale(rng.standard_normal(x.shape))
+    level = elliptical_residual(state.log_density, x, precond) + np.log(rng.random(num_chains))
+    angle = rng.uniform(0.0, 2.0 * np.pi, num_chains)
+    low, high = angle - 2.0 * np.pi, angle.copy()
+    position, log_p = x.copy(), state.log_density.copy()
+    searching = np.arange(num_chains)
+    evaluations = 0
+    for _ in range(ELLIPTICAL_MAX_SHRINKS):
+        t = angle[searching][:, None]
+        proposal = centre + (x[searching] - centre) * np.cos(t) + nu[searching] * np.sin(t)
+        value, _ = _evaluate(log_density, proposal, need_grad=False)
+        evaluations += 1
+        accept = elliptical_residual(value, proposal, precond) > level[searching]  # NaN: shrink
+        done = searching[accept]
+        position[done], log_p[done] = proposal[accept], value[accept]
+        searching = searching[~accept]
+        if len(searching) == 0:
+            break
+        below = angle[searching] < 0.0
+        low[searching] = np.where(below, angle[searching], low[searching])
+        high[searching] = np.where(below, high[searching], angle[searching])
+        angle[searching] = rng.uniform(low[searching], high[searching])
+    moved = np.ones(num_chains, dtype=bool)
+    moved[searching] = False  # out of shrinks: stay (valid: the current point is on its slice)
+    return (ChainState(position, log_p, None),
+            StepInfo(np.ones(num_chains), moved, np.zeros(num_chains, dtype=bool), evaluations))
+
+
 #: The kernels by name. Target acceptance: RWM and MALA from the optimal-scaling results of
 #: Roberts, Gelman & Gilks (1997) and Roberts & Rosenthal (1998); HMC as Stan's default. HMC's
 #: step is jittered by +-10% at every iteration so that no fixed trajectory length resonates with
 #: the target.
 KERNEL_TABLE: dict[str, Kernel] = {
-    "rwm": Kernel(rwm_init, rwm_step, 0.234, lambda dim: 2.38 / np.sqrt(dim)),
+    "rwm": Kernel(rwm_init, rwm_step, 0.234, lambda dim: 2.38 / np.sqrt(dim), needs_gradient=False),
     "mala": Kernel(gradient_init, mala_step, 0.574, lambda dim: 1.65 * dim ** (-1.0 / 3.0)),
     "hmc": Kernel(gradient_init, hmc_step, 0.8, lambda dim: dim ** (-0.25), step_jitter=(0.9, 1.1),
                   uses_trajectory=True),
+    # No step size: the slice shrinks its own bracket; only the Gaussian (mean, metric) adapts.
+    "elliptical": Kernel(rwm_init, elliptical_step, 1.0, lambda dim: 1.0, needs_gradient=False, tunes_step=False),
 }
 KERNELS: tuple[str, ...] = tuple(KERNEL_TABLE)
 TARGET_ACCEPT: dict[str, float] = {name: k.target_accept for name, k in KERNEL_TABLE.items()}

@@ -174,6 +174,16 @@ def laplace_approximation(model: PosteriorModel, max_iterations: int = 30
     direction and the covariance is positive definite. Each iteration is two batched calls: the
     Hessian (``d + 1`` weights) and a line search over 8 step lengths at once.
 
+    When Newton stalls far from a stationary point (its line search finds no ascent while the
+    Newton decrement is above ``_NEWTON_STALL``) the log density is not smooth at the scale of
+    its steps: the Sample-Z likelihood at large beta is a soft maximum over the proxies' feature
+    counts, with creases ~1/beta wide. Measured on latent_raw (15x15, T = 30, d = 50, beta 50,
+    100 proxies) Newton stopped at log density -2.1 near ``w = 0`` while the mode is at +33.4,
+    ``|w| = 0.17``, and chains started there spent their whole run walking out. Then the mode
+    is found by L-BFGS (scipy, exact gradients, ~500 batched one-weight calls) and the covariance
+    is rescaled by ``_profile_widths``, since a Hessian at a crease says nothing about how far the
+    density extends.
+
     Returns:
         The mode ``(d,)`` and the covariance ``(d, d)``.
     """
@@ -181,6 +191,7 @@ def laplace_approximation(model: PosteriorModel, max_iterations: int = 30
     w = np.zeros(dim)
     floor = 0.5 / model.prior_sigma**2
     steps = 0.5 ** np.arange(8)
+    stalled = False
     for _ in range(max_iterations):
         value, grad, hessian = _gradient_and_hessian(model, w)
         eigval, eigvec = np.linalg.eigh(-hessian)
@@ -193,14 +204,72 @@ def laplace_approximation(model: PosteriorModel, max_iterations: int = 30
         values = model.log_density(candidates)
         best = int(np.argmax(values))
         if values[best] <= value:
+            stalled = decrement > _NEWTON_STALL
             break
         w = candidates[best]
     else:  # out of iterations after a step: the last Hessian is not at w (after a break it is)
         _, _, hessian = _gradient_and_hessian(model, w)
+    if stalled:
+        w, hessian = _quasi_newton_mode(model, w)
     eigval, eigvec = np.linalg.eigh(-hessian)
     cov = (eigvec / np.maximum(eigval, floor)) @ eigvec.T
-    return w, 0.5 * (cov + cov.T)
+    cov = 0.5 * (cov + cov.T)
+    if stalled:
+        cov = _profile_widths(model, w, cov)
+    return w, cov
 
+
+#: A Newton decrement above this when the line search fails means Newton stalled (see
+#: ``laplace_approximation``); below it, the mode is as good as the smooth case's.
+_NEWTON_STALL: float = 1e-3
+#: ``_profile_widths`` reads each axis at the largest tried point within this many nats of the
+#: mode (3: not ``0.5 * 4^k``, so a Gaussian axis off by a power of 2 is never read at a tie).
+_PROFILE_DROP: float = 3.0
+#: Halvings of each axis tried by ``_profile_widths`` (down to 2^-23 of the Laplace axis).
+_PROFILE_LEVELS: int = 24
+
+
+def _quasi_newton_mode(model: PosteriorModel, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mode by L-BFGS from ``start`` and the forward-difference Hessian there."""
+    from scipy.optimize import minimize
+
+    def negative(w: np.ndarray) -> tuple[float, np.ndarray]:
+        value, grad = model.log_density_and_grad(w[None, :])
+        return -float(value[0]), -grad[0]
+
+    result = minimize(negative, start, jac=True, method="L-BFGS-B", options={"maxiter": 1000})
+    w = result.x if -result.fun >= float(model.log_density(start[None, :])[0]) else start
+    return w, _gradient_and_hessian(model, w)[2]
+
+
+def _profile_widths(model: PosteriorModel, mode: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """``cov`` with each eigen-axis narrowed to the log density's measured extent along it.
+
+    Along each axis ``+-sqrt(lambda_i) e_i`` the points at fractions ``2^-k`` (``k < 24``) are
+    evaluated for both signs in ONE batched call (``2 * 24 * d`` weights); at the largest
+    fraction ``f`` whose drop ``D`` from the mode is at most ``_PROFILE_DROP`` nats the axis is
+    read as a Gaussian's, half-width ``f sqrt(0.5 / D)`` (exact for a Gaussian; ``~1/s`` for a
+    crease of slope ``s``), and ``lambda_i`` is multiplied by the square of the mean over both
+    signs, capped at 1 (never widened: a flat profile says nothing about the extent). At a
+    crease the Hessian overstates the extent by orders of magnitude (1000x on the latent_raw
+    case above), which forces a gradient sampler's step down to ~1e-3 of the typical scale.
+    ``(d,), (d, d) -> (d, d)``.
+    """
+    dim = len(mode)
+    eigval, eigvec = np.linalg.eigh(cov)
+    axes = (eigvec * np.sqrt(eigval)).T  # (d, d): row i is the axis i
+    fractions = 0.5 ** np.arange(_PROFILE_LEVELS)
+    offsets = np.array([1.0, -1.0])[:, None, None, None] * fractions[None, :, None, None] * axes[None, None]
+    values = model.log_density(mode[None, :] + offsets.reshape(-1, dim)).reshape(2, _PROFILE_LEVELS, dim)
+    drop = float(model.log_density(mode[None, :])[0]) - values
+    within = drop <= _PROFILE_DROP  # NaN: outside
+    first = np.where(within.any(axis=1), within.argmax(axis=1), _PROFILE_LEVELS - 1)  # (2, d)
+    at = np.take_along_axis(drop, first[:, None, :], axis=1)[:, 0]  # (2, d)
+    with np.errstate(divide="ignore"):
+        half = fractions[first] * np.sqrt(0.5 / np.maximum(at, 0.0))
+    width = np.minimum(half, 1.0).mean(axis=0)
+    out = (eigvec * (eigval * width**2)) @ eigvec.T
+    return 0.5 * (out + out.T)
 
 
 # --------------------------------------------------------------------------------------------
@@ -221,7 +290,7 @@ class Posterior:
             over every post-warm-up iteration of every chain (NaN if fewer than 4 iterations).
         ess_min: min over coordinates of the bulk effective sample size of those iterations
             (NaN if fewer than 8).
-        num_chains, warmup, thin: the sampler settings; ``kernel``: ``"hmc"``, ``"mala"`` or ``"rwm"``.
+        num_chains, warmup, thin: the sampler settings; ``kernel``: one of ``mcmc.KERNELS``.
         step_size: the frozen step size (in preconditioned units).
         r_hat: ``(d,)`` and ess: ``(d,)`` per coordinate.
         mode: ``(d,)`` the MAP of the Laplace approximation (NaN if none was computed: warm start,
@@ -325,8 +394,9 @@ def _warn_unconverged(posterior: Posterior, caller: str) -> None:
 
 
 def _warm_start(initial: object, model: PosteriorModel, num_chains: int, rng: np.random.Generator
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Starting points ``(C, d)`` and metric factor ``(d, d)`` from a previous ``Posterior``.
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Starting points ``(C, d)``, metric factor ``(d, d)`` and centre ``(d,)`` (the weighted
+    mean, for the elliptical kernel) from a previous ``Posterior``.
 
     The previous draws are importance-weighted by the choice terms they were not conditioned on
     (the model's choices after the first ``initial.num_choices``: evidence is appended), which
@@ -349,14 +419,15 @@ def _warm_start(initial: object, model: PosteriorModel, num_chains: int, rng: np
     w = np.exp(log_w - log_w.max())
     w /= w.sum()
     starts = samples[rng.choice(len(samples), num_chains, replace=False, p=w)]
+    centre = w @ samples
     if 1.0 / np.sum(w**2) > 2 * dim:
-        centred = samples - w @ samples
+        centred = samples - centre
         cov = (centred * w[:, None]).T @ centred
-        return starts, np.linalg.cholesky(cov + 1e-9 * np.trace(cov) / dim * np.eye(dim))
+        return starts, np.linalg.cholesky(cov + 1e-9 * np.trace(cov) / dim * np.eye(dim)), centre
     if initial.metric is not None and initial.metric.shape == (dim, dim):
-        return starts, initial.metric
+        return starts, initial.metric, centre
     cov = np.atleast_2d(np.cov(samples, rowvar=False))
-    return starts, np.linalg.cholesky(cov + 1e-9 * np.trace(cov) / dim * np.eye(dim))
+    return starts, np.linalg.cholesky(cov + 1e-9 * np.trace(cov) / dim * np.eye(dim)), centre
 
 
 def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta: float,
@@ -390,7 +461,8 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
             smallest thinning giving ``DEFAULT_MIN_ITERATIONS[method]`` iterations per chain;
             with ``initial``, ``DEFAULT_WARM_MIN_ITERATIONS[method]`` iterations of which
             ``ceil(num_samples / num_chains)`` evenly spaced ones are kept (``thin`` 1 recorded).
-        kernel: ``"hmc"`` (default), ``"mala"`` or ``"rwm"``.
+        kernel: ``"hmc"`` (default), ``"mala"``, ``"rwm"`` or ``"elliptical"`` (gradient-free
+            slice moves around the adapted Gaussian; see ``ird_core.mcmc_kernels``).
         num_proxy_samples: ``N`` for Sample-Z when the proxy samples are drawn here.
         init: ``"laplace"`` (chains start at ``mode + init_scale * L z``) or ``"prior"``;
             ignored with ``initial``.
@@ -458,23 +530,23 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
     chain_seed, init_seed = (int(s) for s in np.random.SeedSequence([seed, 1]).generate_state(2))
     init_rng = np.random.default_rng(init_seed)
     if initial is not None:
-        starts, metric = _warm_start(initial, model, num_chains, init_rng)
+        starts, metric, centre = _warm_start(initial, model, num_chains, init_rng)
         mode = np.full(dim, np.nan)
     else:
         mode, cov = laplace_approximation(model)
-        metric = np.linalg.cholesky(cov)
+        metric, centre = np.linalg.cholesky(cov), mode
         if init == "laplace":
             starts = mode + init_scale * init_rng.standard_normal((num_chains, dim)) @ metric.T
         else:
             starts = model.prior_sigma * init_rng.standard_normal((num_chains, dim))
 
     def target(weights: np.ndarray) -> tuple[np.ndarray, "np.ndarray | None"]:
-        if kernel == "rwm":
+        if not mcmc.KERNEL_TABLE[kernel].needs_gradient:
             return model.log_density(weights), None
         return model.log_density_and_grad(weights)
 
     chains = dict(kernel=kernel, warmup=warmup, seed=chain_seed, preconditioner="dense",
-                  initial_preconditioner=mcmc.Preconditioner(metric),
+                  initial_preconditioner=mcmc.Preconditioner(metric, mean=centre),
                   trajectory_length=DEFAULT_TRAJECTORY_LENGTH, max_leapfrog=max_leapfrog,
                   warmup_max_leapfrog=DEFAULT_WARMUP_MAX_LEAPFROG, progress=progress)
     if until_converged is None:

@@ -12,6 +12,7 @@ weight evaluations the batched run made (``--full-naive`` runs all of them inste
 
     python scripts/bench_inference.py [--seed 0] [--beta 1.0] [--samples 1000] [--methods maxent_z sample_z]
     python scripts/bench_inference.py --proxy-study   # Sample-Z sensitivity to the number of proxies
+    python scripts/bench_inference.py --levers        # sampler levers at the experiments' beta 50, 64 samples
 
 Time to convergence: each method is also run with ``until_converged=RunUntil()`` (chains extended
 until split R-hat <= 1.05 and bulk ESS >= max(400, samples / 2); ``--skip-run-until`` to skip),
@@ -21,6 +22,7 @@ and one line per method compares it with the fixed-length run.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 
@@ -69,6 +71,56 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
         print(f"{n:>6} {np.sqrt(np.mean((values - reference) ** 2)):>17.3f} {reference.std():>18.3f}")
 
 
+#: The levers measured by ``--levers`` (Sample-Z at the experiments' beta in 50-d). Each is
+#: ``(label, method, kernel, num_chains, newton_start_only)``; every run uses the experiments'
+#: default sampler settings of its method (``ird_core.experiments.SamplerSettings``: run until
+#: R-hat <= 1.05 and ESS >= 32, or the method's iteration cap) with the lever's chain count.
+LEVERS = (
+    ("hmc, Newton start (before)", "sample_z", "hmc", 4, True),
+    ("hmc, mode + profile start", "sample_z", "hmc", 4, False),
+    ("hmc, 16 chains", "sample_z", "hmc", 16, False),
+    ("elliptical slice", "sample_z", "elliptical", 4, False),
+    ("hmc, MaxEnt-Z", "maxent_z", "hmc", 4, False),
+)
+
+
+def levers(conditions: list[str], seeds: int, beta: float, samples: int) -> None:
+    """Per condition and lever: converged runs (R-hat <= 1.1), median R-hat, mean CPU seconds,
+    mean bulk ESS and ESS per CPU second, with the ratio to the first lever of the same method."""
+    import math
+    import warnings
+    from unittest import mock
+
+    from ird_core import experiments, sampler
+
+    print(f"levers at beta {beta:g}, {samples} samples, 100 Sample-Z proxies, seeds 0-{seeds - 1}:")
+    print(f"{'condition':<18} {'lever':<28} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
+          f"{'ESS/s':>7} {'vs first':>8}")
+    for condition in conditions:
+        first: dict[str, float] = {}
+        for label, method, kernel, chains, newton_only in LEVERS:
+            rows = []
+            for seed in range(seeds):
+                inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
+                obs = lavaland.proxy_observations(inst, 100 if method == "sample_z" else None, seed + 100, 1.0)
+                settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method),
+                                               num_chains=chains)
+                stall = math.inf if newton_only else sampler._NEWTON_STALL
+                with mock.patch.object(sampler, "_NEWTON_STALL", stall), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
+                    cpu = time.process_time()
+                    post = inference.sample_joint_posterior(
+                        obs, beta, method, samples, seed, num_chains=chains, warmup=settings.warmup,
+                        thin=settings.thin, max_leapfrog=settings.max_leapfrog, kernel=kernel,
+                        until_converged=settings.run_until())
+                    rows.append((post.r_hat_max, time.process_time() - cpu, post.ess_min))
+            r_hat, cpu, ess = (np.array(v) for v in zip(*rows))
+            rate = float(np.mean(ess) / np.mean(cpu))
+            first.setdefault(method, rate)
+            print(f"{condition:<18} {label:<28} {int(np.sum(r_hat <= 1.1)):>5}/{seeds:<4} {np.median(r_hat):>9.3f} "
+                  f"{np.mean(cpu):>6.1f} {np.mean(ess):>6.0f} {rate:>7.1f} {rate / first[method]:>7.1f}x", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0)
@@ -82,7 +134,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--proxy-study", action="store_true")
     parser.add_argument("--warmup", type=int, default=None, help="warm-up iterations (default: the library's)")
     parser.add_argument("--skip-run-until", action="store_true", help="skip the time-to-convergence runs")
+    parser.add_argument("--levers", nargs="*", default=None, metavar="CONDITION",
+                        help="compare the sampler levers at the experiments' settings (beta 50, 64 samples) on "
+                             "these conditions (default latent_raw side_effects) and exit")
+    parser.add_argument("--lever-seeds", type=int, default=3)
     args = parser.parse_args(argv)
+    if args.levers is not None:
+        levers(args.levers or ["latent_raw", "side_effects"], args.lever_seeds, 50.0, 64)
+        return 0
 
     instance = lavaland.make_instance("latent_raw", args.seed, size=args.size, horizon=args.horizon)
     mdp = lavaland.train_mdp(instance)

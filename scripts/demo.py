@@ -55,7 +55,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from ird_core import inference, lavaland  # noqa: E402
-from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec, run_trial, trial_instance  # noqa: E402
+from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, QUICK, TrialSpec, run_trial, trial_instance  # noqa: E402
 from ird_core.queries import STRATEGIES  # noqa: E402
 from ird_core.render import save_mission_figure  # noqa: E402
 
@@ -170,7 +170,7 @@ def main() -> int:
     from ird_ros.graph import DEFAULT_NODES
     from ird_ros.launcher import GraphLauncher, LaunchError
 
-    base = TrialSpec(condition=args.condition, seed=args.seed)
+    base = TrialSpec(condition=args.condition, seed=args.seed, **QUICK)  # the demo world: the small setting
     beta = args.beta if args.beta is not None else base.beta
     num_samples = args.num_samples if args.num_samples is not None else base.num_samples
     mode, baseline = MAIN_GRANULARITY, MAIN_BASELINE

@@ -1,22 +1,43 @@
 #!/usr/bin/env python3
-"""Run the Lavaland experiments (IRD paper Figure 4 and the appendix factorial).
+r"""Run the Lavaland experiments (IRD paper Figure 4 and the appendix factorial).
 
-    .venv/bin/python scripts/run_experiments.py [--trials N] [--out DIR] [--seed S]
+    .venv/bin/python scripts/run_experiments.py [--quick] [--trials N] [--out DIR] [--seed S]
         [--workers W] [--scheduler tcp://HOST:PORT] [--via-ros] [--conditions C ...]
         [--size N] [--horizon T] [--obs-dim D] [--num-samples K] [--beta B] ...
+        [--factorial-samples N] [--traj-time-limit S] [--z-sampler METHOD FIELD=VALUE ...]
+
+With no flags: the paper's scale, 15x15 maps, T = 30, 50-d observations, 100 paired trials per
+condition, both Z-approximations and the full factorial. --quick: the small setting for a fast
+look (8x8, T = 12, 10-d, 64 samples from 4 chains, warm-up 50, thin 4, at most 16 leapfrog
+steps, 100 Sample-Z proxies, factorial on 10 samples; ird_core.experiments.QUICK); flags given
+with --quick override it. --z-sampler sample_z num_chains=8 warmup=200 gives one
+Z-approximation its own sampler settings (fields num_chains, warmup, thin, max_leapfrog; the
+others from the shared flags).
 
 Every condition x planner gets N seeded trials (trial i uses instance seed S + i, paired over
-conditions). One trial = one Lavaland instance: the literal plan, and per Z-approximation ONE
-posterior whose samples feed every IRD planner (ird_core.experiments.run_trial). Locally the
+conditions). One trial = one Lavaland instance: the literal plan, the oracle plan (optimal
+under the true reward), and per Z-approximation ONE posterior whose samples feed every IRD
+planner (ird_core.experiments.run_trial): the main planner on all samples, the factorial's
+per-step and trajectory plans on the same first --factorial-samples samples. Locally the
 trials run in a process pool (W workers, default = cores); with --scheduler on a Dask
 distributed cluster (same trial function; both in scripts/_parallel.py, tqdm progress on
 stderr). A trial is a pure function of its spec, so the numbers do not depend on W, the
-scheduler or completion order.
+scheduler or completion order: a Dask run reproduces a local run bit for bit.
+
+A local Dask cluster (three shells in the checkout; the workers import ird_core from it):
+
+    .venv/bin/dask scheduler --host 127.0.0.1 --port 8786 --no-dashboard
+    PYTHONPATH=$PWD OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+        .venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1 --no-dashboard
+    .venv/bin/python scripts/run_experiments.py --scheduler tcp://127.0.0.1:8786
 
 Outputs in --out (default out/experiments): results.csv (one row per experiment x condition x
-planner), trials.csv (one row per trial x planner), results.md (tables + settings + wall
-time), figure4_lava.png (lava fraction per condition: literal / IRD Sample-Z / IRD MaxEnt-Z,
-95% Wilson error bars), factorial_<z>.png (per condition, granularity x baseline), run.json.
+planner, with the share of the literal-to-oracle return gap each IRD planner closes and its
+95% paired bootstrap interval), trials.csv (one row per trial x planner), results.md (tables +
+settings + wall time), figure4_lava.png (lava fraction per condition: literal / IRD Sample-Z /
+IRD MaxEnt-Z / oracle, 95% Wilson error bars), figure4_return.png (mean true return, 95%
+Student-t error bars), factorial_<z>.png (per condition, granularity x baseline), run.json.
+The wall time is printed last.
 
 --world FILE (a world file, e.g. worlds/figure1.yaml): the trials run on the file's instance
 instead of Lavaland (condition ``file``; --conditions, --size, --horizon, --obs-dim unused).
@@ -54,6 +75,12 @@ ORDER = CONDITIONS + (FILE_CONDITION,)  # tables and figures: the paper's condit
 
 ROOT = Path(__file__).resolve().parents[1]
 Z_LABEL = {"sample_z": "IRD Sample-Z", "maxent_z": "IRD MaxEnt-Z"}
+# (planner, label, colour) of Figure 4's bars
+FIGURE4 = (("literal", "Literal", "#c44e52"), ("ird_sample_z", Z_LABEL["sample_z"], "#4c72b0"),
+           ("ird_maxent_z", Z_LABEL["maxent_z"], "#55a868"), ("oracle", "Oracle", "#8c8c8c"))
+# TrialSpec fields set by a flag of the same name (dashes for underscores); --quick's fields among them
+SPEC_FLAGS = ("size", "horizon", "obs_dim", "num_samples", "beta", "prior_sigma", "num_chains", "warmup",
+              "thin", "max_leapfrog", "num_proxy_samples", "factorial_samples", "traj_time_limit")
 
 
 # --------------------------------------------------------------------------- running
@@ -105,16 +132,24 @@ def _pct(x: float) -> str:
     return "nan" if math.isnan(x) else f"{100 * x:.0f}"
 
 
+def _gap(s: ex.CellSummary) -> str:
+    if math.isnan(s.gap_closed):
+        return "-"
+    return f"{_pct(s.gap_closed)} [{_pct(s.gap_ci_low)}, {_pct(s.gap_ci_high)}]"
+
+
 def markdown_table(summaries: list[ex.CellSummary], experiment: str) -> str:
-    lines = ["| condition | planner | trials | lava % [95% CI] | target % [95% CI] | mean true return [95% CI] | fallbacks | R-hat>1.1 |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [("| condition | planner | trials | lava % [95% CI] | target % [95% CI] | mean true return [95% CI] "
+              "| gap closed % [95% CI] | fallbacks | R-hat>1.1 |"),
+             "|---|---|---|---|---|---|---|---|---|"]
     for s in summaries:
         if s.experiment != experiment:
             continue
         lines.append(
             f"| {s.condition} | {s.planner} | {s.trials} | {_pct(s.lava_fraction)} [{_pct(s.lava_ci_low)}, {_pct(s.lava_ci_high)}] "
             f"| {_pct(s.target_fraction)} [{_pct(s.target_ci_low)}, {_pct(s.target_ci_high)}] "
-            f"| {s.mean_true_return:.2f} [{s.return_ci_low:.2f}, {s.return_ci_high:.2f}] | {s.fallbacks} | {s.nonconverged} |")
+            f"| {s.mean_true_return:.2f} [{s.return_ci_low:.2f}, {s.return_ci_high:.2f}] | {_gap(s)} "
+            f"| {s.fallbacks} | {s.nonconverged} |")
     return "\n".join(lines)
 
 
@@ -131,7 +166,9 @@ def claim_check(summaries: list[ex.CellSummary]) -> list[str]:
             below = ird.lava_fraction < lit.lava_fraction
             disjoint = ird.lava_ci_high < lit.lava_ci_low
             lines.append(f"- {Z_LABEL[z]}, {c}: IRD lava {_pct(ird.lava_fraction)}% vs literal {_pct(lit.lava_fraction)}%: "
-                         f"{'below' if below else 'NOT below'}, 95% intervals {'do not overlap' if disjoint else 'OVERLAP'}")
+                         f"{'below' if below else 'NOT below'}, 95% intervals {'do not overlap' if disjoint else 'OVERLAP'}; "
+                         + ("no literal-to-oracle return gap to close" if math.isnan(ird.gap_closed)
+                            else f"closes {_gap(ird)}% of the literal-to-oracle return gap"))
     return lines
 
 
@@ -146,7 +183,10 @@ def write_markdown(path: Path, summaries, settings: dict, wall: float, command: 
         "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items() if k not in ("workers", "scheduler")),
         "",
         f"Main IRD planner: granularity `{ex.MAIN_GRANULARITY}`, baseline `{ex.MAIN_BASELINE}` (exact DP on all posterior samples).",
-        "Intervals: 95% Wilson score for fractions, 95% Student-t for the mean true return.",
+        ("Intervals: 95% Wilson score for fractions, 95% Student-t for the mean true return. "
+         "Gap closed: the share of the literal-to-oracle mean true return gap an IRD planner closes "
+         "((IRD - literal) / (oracle - literal); 100 = oracle, 0 = literal, negative = below literal), "
+         "95% paired percentile bootstrap over trials (2000 resamples, seed 0)."),
         "",
         "## Figure 4: literal vs IRD",
         "",
@@ -176,29 +216,38 @@ def plot_figures(out: Path, summaries: list[ex.CellSummary]) -> list[Path]:
     files = []
     main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
     conditions = [c for c in ORDER if (c, "literal") in main]
-    planners = [("literal", "Literal", "#c44e52")] + [(f"ird_{z}", Z_LABEL[z], col)
-                                                     for z, col in zip(ex.Z_METHODS, ("#4c72b0", "#55a868"))]
-    planners = [p for p in planners if any((c, p[0]) in main for c in conditions)]
-    fig, ax = plt.subplots(figsize=(7.5, 3.4), dpi=110)
-    width = 0.8 / len(planners)
-    x = np.arange(len(conditions))
-    for j, (key, label, colour) in enumerate(planners):
-        ss = [main[c, key] for c in conditions]
-        y = np.array([s.lava_fraction for s in ss])
-        err = np.clip([[s.lava_fraction - s.lava_ci_low for s in ss], [s.lava_ci_high - s.lava_fraction for s in ss]], 0, 1)
-        ax.bar(x + (j - (len(planners) - 1) / 2) * width, y, width, yerr=err, capsize=3, label=label, color=colour)
-    ax.set_xticks(x, [c.replace("_", " ") for c in conditions])
-    ax.set_ylabel("fraction of runs touching lava")
-    ax.set_ylim(0, 1)
+    planners = [p for p in FIGURE4 if any((c, p[0]) in main for c in conditions)]
     n = main[conditions[0], "literal"].trials if conditions else 0
-    ax.set_title(f"Lavaland: lava encounters ({n} trials per bar, 95% Wilson CI)")
-    ax.legend(frameon=False, ncol=len(planners), loc="upper left")
-    ax.spines[["top", "right"]].set_visible(False)
-    fig.tight_layout()
-    path = out / "figure4_lava.png"
-    fig.savefig(path)
-    plt.close(fig)
-    files.append(path)
+    for name, field, ylabel, title in (
+            ("figure4_lava.png", "lava", "fraction of runs touching lava",
+             f"Lavaland: lava encounters ({n} trials per bar, 95% Wilson CI)"),
+            ("figure4_return.png", "return", "mean true return",
+             f"Lavaland: true return ({n} trials per bar, 95% t CI)")):
+        fig, ax = plt.subplots(figsize=(8.5, 3.4), dpi=110)
+        width = 0.8 / max(len(planners), 1)
+        x = np.arange(len(conditions))
+        for j, (key, label, colour) in enumerate(planners):
+            ss = [main.get((c, key)) for c in conditions]
+            mid, low, high = (np.array([math.nan if s is None else getattr(s, a) for s in ss]) for a in (
+                ("lava_fraction", "lava_ci_low", "lava_ci_high") if field == "lava" else
+                ("mean_true_return", "return_ci_low", "return_ci_high")))
+            err = np.nan_to_num(np.clip([mid - low, high - mid], 0, None))
+            ax.bar(x + (j - (len(planners) - 1) / 2) * width, mid, width, yerr=err, capsize=3, label=label,
+                   color=colour)
+        ax.set_xticks(x, [c.replace("_", " ") for c in conditions])
+        ax.set_ylabel(ylabel)
+        if field == "lava":
+            ax.set_ylim(0, 1)
+        else:
+            ax.axhline(0, color="black", linewidth=0.6)
+        ax.set_title(title)
+        ax.legend(frameon=False, ncol=len(planners), loc="upper left", fontsize=8)
+        ax.spines[["top", "right"]].set_visible(False)
+        fig.tight_layout()
+        path = out / name
+        fig.savefig(path)
+        plt.close(fig)
+        files.append(path)
 
     fact = {(s.condition, s.z_approx, s.granularity, s.baseline): s for s in summaries if s.experiment == "factorial"}
     colours = {"initial_state": "#8172b2", "training_features": "#4c72b0", "log_z": "#ccb974"}
@@ -397,7 +446,7 @@ def run_via_ros(args, settings: dict) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    d = ex.TrialSpec("side_effects", 0)
+    """The flags; the TrialSpec flags default to None (resolved by :func:`resolve_spec_flags`)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--trials", type=int, default=None, help="trials per condition (default 100; 3 with --via-ros)")
@@ -410,24 +459,71 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS)
     p.add_argument("--z-methods", nargs="+", default=list(ex.Z_METHODS), choices=ex.Z_METHODS)
     p.add_argument("--no-factorial", action="store_true", help="main experiment only")
-    _parallel.add_trial_arguments(p, d)
-    p.add_argument("--num-proxy-samples", type=int, default=d.num_proxy_samples)
-    p.add_argument("--traj-samples", type=int, default=d.traj_samples)
-    p.add_argument("--traj-time-limit", type=float, default=d.traj_time_limit)
+    p.add_argument("--quick", action="store_true",
+                   help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
+    _parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
+    p.add_argument("--num-proxy-samples", type=int, default=None)
+    p.add_argument("--factorial-samples", type=int, default=None,
+                   help="posterior samples of every factorial plan, per-step and trajectory alike (the first N)")
+    p.add_argument("--traj-time-limit", type=float, default=None, help="seconds per exact trajectory plan")
+    p.add_argument("--z-sampler", nargs="+", action="append", default=[], metavar="ARG",
+                   help="METHOD FIELD=VALUE ...: that Z-approximation's own sampler settings "
+                        f"(fields {', '.join(f.name for f in dataclasses.fields(ex.SamplerSettings))})")
     return p
 
 
+def resolve_spec_flags(args) -> None:
+    """Fill the TrialSpec flags left unset: from --quick's setting, else TrialSpec's defaults."""
+    defaults = ex.TrialSpec("side_effects", 0)
+    args.explicit = {field for field in SPEC_FLAGS if getattr(args, field) is not None}
+    for field in SPEC_FLAGS:
+        if getattr(args, field) is None:
+            setattr(args, field, ex.QUICK[field] if args.quick and field in ex.QUICK else getattr(defaults, field))
+
+
+#: The sampler flags shared by both Z-approximations.
+SHARED_SAMPLER_FLAGS = ("num_chains", "warmup", "thin", "max_leapfrog")
+
+
+def _quick_samplers(args) -> dict:
+    """Both methods on the shared sampler flags (fixed length) with --quick, as the small setting
+    was run, or when one of those flags is given: it then means both methods' setting."""
+    shared = args.quick or bool(set(SHARED_SAMPLER_FLAGS) & getattr(args, "explicit", set()))
+    return {"sample_z_sampler": None, "maxent_z_sampler": None} if shared else {}
+
+
+def z_samplers(args) -> dict:
+    """``{"<method>_sampler": SamplerSettings}`` from --z-sampler (ValueError naming the bad item)."""
+    names = [f.name for f in dataclasses.fields(ex.SamplerSettings)]
+    out = _quick_samplers(args)
+    base = ex.TrialSpec("side_effects", 0, **{f: getattr(args, f) for f in SPEC_FLAGS}, **out)
+    for method, *items in args.z_sampler:
+        if method not in ex.Z_METHODS:
+            raise ValueError(f"--z-sampler: method must be one of {ex.Z_METHODS}, got {method!r}")
+        values = dataclasses.asdict(base.sampler(method))
+        for item in items:
+            key, _, value = item.partition("=")
+            if key not in names or not value.lstrip("-").isdigit():
+                raise ValueError(f"--z-sampler {method}: expected FIELD=INTEGER with FIELD in {names}, got {item!r}")
+            values[key] = int(value)
+        out[f"{method}_sampler"] = ex.SamplerSettings(**values)
+    return out
+
+
 def spec_settings(args) -> dict:
-    return dict(size=args.size, horizon=args.horizon, obs_dim=args.obs_dim, num_samples=args.num_samples,
-                beta=args.beta, prior_sigma=args.prior_sigma, num_chains=args.num_chains, warmup=args.warmup, thin=args.thin,
-                max_leapfrog=args.max_leapfrog, num_proxy_samples=args.num_proxy_samples,
-                traj_samples=args.traj_samples, traj_time_limit=args.traj_time_limit,
-                z_methods=tuple(args.z_methods), factorial=not args.no_factorial)
+    return dict(**{f: getattr(args, f) for f in SPEC_FLAGS}, z_methods=tuple(args.z_methods),
+                factorial=not args.no_factorial, **z_samplers(args))
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    settings = spec_settings(args)
+    resolve_spec_flags(args)
+    try:
+        settings = spec_settings(args)
+        ex.TrialSpec("side_effects", 0, **settings)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     conditions = list(args.conditions)
     if args.world is not None:
         from ird_core.world_file import load_world
@@ -460,10 +556,11 @@ def main(argv: list[str] | None = None) -> int:
     write_trials_csv(args.out / "trials.csv", results)
     write_results_csv(args.out / "results.csv", summaries)
     traj = [r for r in results if r.granularity == "trajectory"]
-    note = (f"Trajectory plans use the first {args.traj_samples} posterior samples (exact solver, "
-            f"{args.traj_time_limit:g} s limit per plan); {sum(r.fallback for r in traj)} of {len(traj)} trajectory plans "
-            f"hit the limit and fell back to the per-step plan of the same samples (column `fallbacks`). "
-            f"Per-step plans use all {args.num_samples} samples.") if traj else ""
+    note = (f"Per-step and trajectory plans both use the same first {args.factorial_samples} of the "
+            f"{args.num_samples} posterior samples (the main IRD planner uses all {args.num_samples}). "
+            f"Trajectory plans: exact solver, {args.traj_time_limit:g} s limit per plan; "
+            f"{sum(r.fallback for r in traj)} of {len(traj)} trajectory plans hit the limit and fell back to the "
+            f"per-step plan of the same samples (column `fallbacks`).") if traj else ""
     shown = dict(settings, trials=trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
     write_markdown(args.out / "results.md", summaries, shown, wall, command, note)
     figures = plot_figures(args.out, summaries)
@@ -471,7 +568,9 @@ def main(argv: list[str] | None = None) -> int:
                                                    "figures": [f.name for f in figures]}, indent=2, default=str))
     print(markdown_table(summaries, "main"))
     print("\n".join(claim_check(summaries)))
-    print(f"wall time {wall:.1f} s; outputs in {args.out}")
+    print(f"outputs in {args.out}")
+    print(f"Wall time: {wall:.1f} s ({wall / 60:.1f} min) for {len(specs)} trials, "
+          f"{_parallel.describe(args.workers, args.scheduler)}")
     return 0
 
 

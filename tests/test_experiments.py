@@ -7,6 +7,7 @@ import importlib.util
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ird_core import experiments as ex
@@ -14,10 +15,11 @@ from ird_core import experiments as ex
 ROOT = Path(__file__).resolve().parents[1]
 
 TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4,
-            num_proxy_samples=20, traj_samples=4, traj_time_limit=5.0)
+            num_proxy_samples=20, factorial_samples=16, traj_time_limit=5.0, sample_z_sampler=None,
+            maxent_z_sampler=None)
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
              "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--num-proxy-samples", "20",
-             "--traj-samples", "4", "--traj-time-limit", "5"]
+             "--factorial-samples", "16", "--traj-time-limit", "5"]
 
 
 def _script():
@@ -74,7 +76,8 @@ def test_run_trial_deterministic_and_complete():
     assert _key(a) == _key(b)
     planners = [r.planner for r in a]
     assert planners[0] == "literal" and "ird_sample_z" in planners and "ird_maxent_z" in planners
-    assert len(a) == 1 + 2 * (1 + len(ex.GRANULARITIES) * len(ex.BASELINES))
+    assert planners[1] == "oracle"
+    assert len(a) == 2 + 2 * (1 + len(ex.GRANULARITIES) * len(ex.BASELINES))
     for r in a:
         assert len(r.cells) == TINY["horizon"] + 1
     # the main IRD plan is the factorial's per_step/training_features plan of the same posterior
@@ -93,7 +96,7 @@ def test_one_vs_two_workers_identical():
 
 
 @pytest.mark.timeout(300)
-def test_results_csv_columns_and_rows(tmp_path):
+def test_results_csv_columns_and_rows(tmp_path, capsys):
     mod = _script()
     out = tmp_path / "exp"
     code = mod.main(["--trials", "2", "--workers", "1", "--out", str(out), "--conditions", "side_effects",
@@ -106,13 +109,24 @@ def test_results_csv_columns_and_rows(tmp_path):
     assert required <= set(rows[0])
     cells = [(r["experiment"], r["condition"], r["planner"]) for r in rows]
     assert len(cells) == len(set(cells))
-    per_condition = 3 + 2 * len(ex.GRANULARITIES) * len(ex.BASELINES)
+    per_condition = 4 + 2 * len(ex.GRANULARITIES) * len(ex.BASELINES)
     assert len(rows) == 2 * per_condition
     assert all(r["trials"] == "2" for r in rows)
-    for name in ("trials.csv", "results.md", "figure4_lava.png", "factorial_sample_z.png", "run.json"):
+    for name in ("trials.csv", "results.md", "figure4_lava.png", "figure4_return.png", "factorial_sample_z.png",
+                 "run.json"):
         assert (out / name).is_file()
     with (out / "trials.csv").open() as fh:
         assert len(list(csv.DictReader(fh))) == 2 * 2 * per_condition
+    # the gap share exists exactly for the IRD planners; literal and oracle rows are NaN
+    assert {"gap_closed", "gap_ci_low", "gap_ci_high"} <= set(rows[0])
+    for r in rows:
+        if r["planner"] in ("literal", "oracle"):
+            assert r["gap_closed"] == r["gap_ci_low"] == r["gap_ci_high"] == "nan"
+    assert {r["planner"] for r in rows if r["experiment"] == "main"} == {"literal", "oracle", "ird_sample_z",
+                                                                       "ird_maxent_z"}
+    assert "| gap closed % [95% CI] |" in (out / "results.md").read_text()
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("Wall time: ") and " s (" in last
 
 
 @pytest.mark.timeout(300)
@@ -124,4 +138,210 @@ def test_dask_local_cluster_matches_local_pool():
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         remote = mod.run_dask(specs, client)
+    assert _key(local) == _key(remote)
+
+
+# --------------------------------------------------------------------------- gap closed
+
+
+def test_gap_share_known_values():
+    assert ex.gap_share(0.0, 2.0, 1.0) == 0.5 and ex.gap_share(-3.0, 1.0, 2.0) == 1.25
+    assert math.isnan(ex.gap_share(1.0, 1.0, 1.0))  # no gap
+    assert math.isnan(ex.gap_share(2.0, 1.0, 1.5))
+
+
+def test_gap_closed_endpoints_are_exact():
+    literal, oracle = [0.0, -10.0, 1.0, 2.5], [3.0, 3.0, 3.9, 2.5]
+    assert ex.gap_closed(literal, oracle, oracle) == (1.0, 1.0, 1.0)
+    assert ex.gap_closed(literal, oracle, literal) == (0.0, 0.0, 0.0)
+
+
+def test_gap_closed_two_trials_by_hand():
+    """n = 2: a resample holds trial 0 twice (p = 1/4), both (1/2) or trial 1 twice (1/4), so the
+    2.5% and 97.5% percentiles of 2000 resamples are the single-trial shares 0.5 and 1.0."""
+    share, low, high = ex.gap_closed([0.0, 0.0], [2.0, 4.0], [1.0, 4.0])
+    assert share == pytest.approx(5 / 6, abs=1e-15) and (low, high) == (0.5, 1.0)
+
+
+def test_gap_closed_bootstrap_is_paired_deterministic_and_contains_the_share():
+    rng = np.random.default_rng(3)
+    literal = rng.normal(-2.0, 3.0, 40)
+    oracle = literal + rng.uniform(0.0, 6.0, 40)
+    planner = literal + 0.6 * (oracle - literal) + rng.normal(0.0, 0.5, 40)
+    share, low, high = ex.gap_closed(literal, oracle, planner, seed=7, resamples=500)
+    assert share == pytest.approx((planner.mean() - literal.mean()) / (oracle.mean() - literal.mean()), rel=1e-12)
+    assert low < share < high
+    assert ex.gap_closed(literal, oracle, planner, seed=7, resamples=500) == (share, low, high)
+    # the same resampled trial indices for all three (paired), by a plain loop over resamples
+    index = np.random.default_rng(7).integers(0, 40, size=(500, 40))
+    boot = [(planner[i].mean() - literal[i].mean()) / (oracle[i].mean() - literal[i].mean()) for i in index]
+    assert (low, high) == pytest.approx(tuple(np.percentile(boot, [2.5, 97.5])), rel=1e-12)
+
+
+def test_gap_closed_edge_cases():
+    assert ex.gap_closed([1.0], [3.0], [2.0]) == (0.5, 0.5, 0.5)  # n = 1: every resample is the trial
+    assert all(math.isnan(v) for v in ex.gap_closed([], [], []))
+    assert all(math.isnan(v) for v in ex.gap_closed([1.0, 2.0], [1.0, 2.0], [0.0, 5.0]))  # no gap
+    with pytest.raises(ValueError, match="same length"):
+        ex.gap_closed([1.0, 2.0], [3.0], [2.0, 2.0])
+
+
+def test_aggregate_gap_pairs_trials_by_seed():
+    def result(planner, seed, ret, z=""):
+        return ex.TrialResult("main", "side_effects", seed, planner, z, "x", "none", False, True, ret, 0.0, "dp",
+                              False, 0.0, math.nan, math.nan, ((0, 0),))
+
+    rows = [result("literal", 0, 0.0), result("literal", 1, 0.0), result("oracle", 1, 4.0), result("oracle", 0, 2.0),
+            result("ird_maxent_z", 1, 4.0, "maxent_z"), result("ird_maxent_z", 0, 1.0, "maxent_z")]
+    by = {s.planner: s for s in ex.aggregate(rows)}
+    assert (by["ird_maxent_z"].gap_closed, by["ird_maxent_z"].gap_ci_low, by["ird_maxent_z"].gap_ci_high) == \
+        ex.gap_closed([0.0, 0.0], [2.0, 4.0], [1.0, 4.0])
+    assert all(math.isnan(by[p].gap_closed) for p in ("literal", "oracle"))
+
+
+# --------------------------------------------------------------------------- oracle and factorial
+
+
+SMALL_MAP = dict(TINY, size=8, horizon=12, obs_dim=10, factorial_samples=4)
+
+
+@pytest.mark.timeout(600)
+def test_oracle_is_optimal_under_the_true_reward():
+    """The oracle's true return bounds every planner's in every trial, equals its DP objective,
+    and beats the literal plan somewhere (the gap is not empty on these seeds)."""
+    strict = 0
+    for condition in ("side_effects", "reward_hacking", "latent_raw", "latent_classifier"):
+        for seed in (0, 1):
+            results = ex.run_trial(ex.TrialSpec(condition, seed, **SMALL_MAP))
+            oracle, = [r for r in results if r.planner == "oracle"]
+            assert oracle.objective == pytest.approx(oracle.true_return, abs=1e-9)
+            assert len(oracle.cells) == SMALL_MAP["horizon"] + 1
+            for r in results:
+                assert r.true_return <= oracle.true_return + 1e-9, (condition, seed, r.planner)
+            strict += results[0].true_return < oracle.true_return - 1e-9
+    assert strict > 0
+
+
+@pytest.mark.timeout(600)
+def test_factorial_granularities_share_the_first_samples():
+    """Per-step and trajectory plans use the same first ``factorial_samples`` draws. On one
+    sample set the per-step objective sum_t min_i q_i is at most min_i sum_t q_i on every path,
+    so the trajectory optimum is at least the per-step optimum and at least the per-step path's
+    trajectory objective; each plan's objective is its objective on exactly those samples."""
+    from ird_core import lavaland, planning
+
+    spec = ex.TrialSpec("latent_raw", 2, **SMALL_MAP)
+    inst = ex.trial_instance(spec)
+    test = lavaland.test_mdp(inst)
+    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    by = {r.planner: r for r in ex.run_trial(spec)}
+    for z in spec.z_methods:
+        samples = ex._posterior(spec, inst, z).samples[: spec.factorial_samples]
+        assert by[f"ird_{z}"].cells == planning.plan_path(test, ex._posterior(spec, inst, z).samples, "per_step",
+                                                          ex.MAIN_BASELINE, reference).cells
+        for base in ex.BASELINES:
+            step, traj = by[f"{z}/per_step/{base}"], by[f"{z}/trajectory/{base}"]
+            assert step.cells == planning.plan_path(test, samples, "per_step", base, reference).cells
+            assert step.objective == pytest.approx(
+                planning.path_objective(test, step.cells, samples, "per_step", base, reference), abs=1e-9)
+            assert traj.objective == pytest.approx(
+                planning.path_objective(test, traj.cells, samples, "trajectory" if not traj.fallback else "per_step",
+                                        base, reference), abs=1e-9)
+            if not traj.fallback:
+                assert traj.objective >= step.objective - 1e-9
+                assert traj.objective >= planning.path_objective(test, step.cells, samples, "trajectory", base,
+                                                                 reference) - 1e-9
+
+
+def test_factorial_samples_must_fit_the_posterior():
+    with pytest.raises(ValueError, match="factorial_samples"):
+        ex.TrialSpec("side_effects", 0, num_samples=8, factorial_samples=9)
+    with pytest.raises(ValueError, match="z_methods"):
+        ex.TrialSpec("side_effects", 0, z_methods=("laplace_z",))
+
+
+# --------------------------------------------------------------------------- settings
+
+
+def test_defaults_are_paper_scale_and_quick_is_the_small_setting():
+    mod = _script()
+    d = ex.TrialSpec("side_effects", 0)
+    assert (d.size, d.horizon, d.obs_dim, d.z_methods, d.factorial) == (15, 30, 50, ex.Z_METHODS, True)
+
+    def settings(*argv):
+        args = mod.build_parser().parse_args(list(argv))
+        mod.resolve_spec_flags(args)
+        return mod.spec_settings(args)
+
+    plain = settings()
+    assert {k: plain[k] for k in ("size", "horizon", "obs_dim")} == {"size": 15, "horizon": 30, "obs_dim": 50}
+    assert ex.TrialSpec("side_effects", 0, **plain) == d
+    quick = settings("--quick")
+    assert {k: quick[k] for k in ex.QUICK} == ex.QUICK
+    assert (quick["size"], quick["horizon"], quick["obs_dim"], quick["factorial_samples"]) == (8, 12, 10, 10)
+    mixed = settings("--quick", "--size", "9", "--num-chains", "2")
+    assert (mixed["size"], mixed["num_chains"], mixed["horizon"]) == (9, 2, 12)
+
+
+def test_per_method_sampler_settings():
+    mod = _script()
+    args = mod.build_parser().parse_args(["--quick", "--z-sampler", "sample_z", "num_chains=8", "warmup=200"])
+    mod.resolve_spec_flags(args)
+    spec = ex.TrialSpec("side_effects", 0, **mod.spec_settings(args))
+    assert spec.sampler("sample_z") == ex.SamplerSettings(num_chains=8, warmup=200, thin=4, max_leapfrog=16)
+    assert spec.sampler("maxent_z") == ex.SamplerSettings(num_chains=4, warmup=50, thin=4, max_leapfrog=16)
+    assert hash(spec) == hash(ex.TrialSpec("side_effects", 0, **mod.spec_settings(args)))
+    # the trial's posterior of each method runs with that method's settings
+    own = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(3, 12, 2, 4)))
+    inst = ex.trial_instance(own)
+    sz, mz = ex._posterior(own, inst, "sample_z"), ex._posterior(own, inst, "maxent_z")
+    assert (sz.num_chains, sz.warmup, mz.num_chains, mz.warmup) == (3, 12, TINY["num_chains"], TINY["warmup"])
+    bad = mod.build_parser().parse_args(["--z-sampler", "sample_z", "chains=8"])
+    mod.resolve_spec_flags(bad)
+    with pytest.raises(ValueError, match="FIELD=INTEGER"):
+        mod.spec_settings(bad)
+    with pytest.raises(ValueError, match="num_chains"):
+        ex.SamplerSettings(num_chains=0, warmup=1, thin=1, max_leapfrog=1)
+
+
+@pytest.mark.timeout(300)
+def test_dask_scheduler_and_worker_processes_match_local_pool(tmp_path):
+    """The documented local cluster: a ``dask scheduler`` and a ``dask worker`` process on
+    127.0.0.1 reproduce the local pool's results exactly."""
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    import distributed
+
+    mod = _script()
+    specs = ex.make_specs(["side_effects"], 2, 5, **TINY)
+    local = mod.run_local(specs, 1)
+    with socket.socket() as s:  # a free port; the scheduler binds it right away
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    dask = str(Path(sys.executable).with_name("dask"))
+    env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    procs = []
+    try:
+        with (tmp_path / "scheduler.log").open("w") as log:
+            procs.append(subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                           "--no-dashboard"], cwd=tmp_path, env=env, stdout=log, stderr=log))
+        with (tmp_path / "worker.log").open("w") as log:
+            procs.append(subprocess.Popen([dask, "worker", address, "--nworkers", "2", "--nthreads", "1",
+                                           "--no-dashboard"], cwd=tmp_path, env=env, stdout=log, stderr=log))
+        with distributed.Client(address, timeout=120) as client:
+            client.wait_for_workers(2, timeout=120)
+            remote = mod.run_dask(specs, client)
+    finally:
+        for proc in reversed(procs):
+            proc.terminate()
+        for proc in reversed(procs):
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
     assert _key(local) == _key(remote)

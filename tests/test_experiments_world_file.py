@@ -15,7 +15,7 @@ from ird_core import inference, lavaland, world_file
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = dict(num_samples=16, num_chains=2, warmup=20, thin=1, max_leapfrog=8, num_proxy_samples=20,
-             z_methods=("maxent_z",), factorial=False)
+             z_methods=("maxent_z",), factorial=False, sample_z_sampler=None, maxent_z_sampler=None)
 
 
 def _script():
@@ -36,7 +36,8 @@ def test_run_experiments_world_figure1(tmp_path: Path) -> None:
         rows = list(csv.DictReader(fh))
     assert {r["condition"] for r in rows} == {lavaland.FILE_CONDITION}
     assert sorted((r["seed"], r["planner"]) for r in rows) == [
-        ("0", "ird_maxent_z"), ("0", "literal"), ("1", "ird_maxent_z"), ("1", "literal")]
+        ("0", "ird_maxent_z"), ("0", "literal"), ("0", "oracle"), ("1", "ird_maxent_z"), ("1", "literal"),
+        ("1", "oracle")]
     literal = [r for r in rows if r["planner"] == "literal"]
     assert literal[0]["cells"] == literal[1]["cells"] and all(r["touched_lava"] == "1" for r in literal)
     assert all(r["touched_lava"] == "0" for r in rows if r["planner"] != "literal")
@@ -58,7 +59,8 @@ def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> Non
     seeded from the trial seed, not of the first world's posterior alone."""
     path = ROOT / "worlds" / "two_training_worlds.yaml"
     spec = ex.TrialSpec(condition=lavaland.FILE_CONDITION, seed=5, world=str(path), **SMALL)
-    (literal, ird) = ex.run_trial(spec)
+    (literal, oracle, ird) = ex.run_trial(spec)
+    assert oracle.planner == "oracle" and oracle.true_return >= max(literal.true_return, ird.true_return)
     inst = world_file.load_world(path)
     assert len(inst.extra_training_worlds) == 1
     seed = int(np.random.SeedSequence([5, ex.Z_METHODS.index("maxent_z") + 1]).generate_state(1)[0]) % 2**31
@@ -74,3 +76,19 @@ def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> Non
     expected = planning.plan_path(lavaland.test_mdp(inst), joint.samples, "per_step", "training_features", reference)
     assert ird.cells == tuple(expected.cells)
     assert literal.condition == ird.condition == lavaland.FILE_CONDITION
+
+
+def test_world_without_true_rewards_has_no_oracle_row(tmp_path: Path) -> None:
+    """Without true rewards there is no ceiling: no oracle row, NaN returns and NaN gap shares."""
+    import shutil
+
+    source = ROOT / "worlds" / "figure1.yaml"
+    for png in ROOT.joinpath("worlds").glob("figure1_*.png"):
+        shutil.copy(png, tmp_path / png.name)
+    text = "\n".join(line for line in source.read_text().splitlines() if "true_reward" not in line)
+    (tmp_path / "figure1.yaml").write_text(text)
+    assert world_file.load_world(tmp_path / "figure1.yaml").true_terrain_reward is None
+    spec = ex.TrialSpec(condition=lavaland.FILE_CONDITION, seed=0, world=str(tmp_path / "figure1.yaml"), **SMALL)
+    results = ex.run_trial(spec)
+    assert [r.planner for r in results] == ["literal", "ird_maxent_z"]
+    assert all(np.isnan(s.gap_closed) and np.isnan(s.mean_true_return) for s in ex.aggregate(results))

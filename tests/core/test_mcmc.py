@@ -264,10 +264,14 @@ def test_one_kernel_step_leaves_the_target_invariant(kernel: str) -> None:
     params = mcmc.KernelParams(np.full(len(start), 1.2), mcmc.Preconditioner(np.diag([1.0, 0.5])), 3)
     state, info = k.step(rng, state, target, params)
     assert state.position.shape == start.shape and state.log_density.shape == (len(start),)
-    assert (state.gradient is None) == (kernel == "rwm")
+    assert (state.gradient is None) == (not k.needs_gradient)
     np.testing.assert_allclose(state.log_density, target(state.position)[0])
-    assert 0.05 < info.is_accepted.mean() < 0.95  # the step moves the chains
-    assert info.num_evaluations == (3 if kernel == "hmc" else 1)
+    if kernel == "elliptical":  # never rejects; one call per shrink of its bracket
+        assert info.is_accepted.all() and not np.any(np.all(state.position == start, axis=1))
+        assert 1 <= info.num_evaluations <= mcmc_kernels.ELLIPTICAL_MAX_SHRINKS
+    else:
+        assert 0.05 < info.is_accepted.mean() < 0.95  # the step moves the chains
+        assert info.num_evaluations == (3 if kernel == "hmc" else 1)
     n = len(start)
     assert np.all(np.abs(state.position.mean(axis=0) - mean) < 5 * np.sqrt(np.diag(cov) / n))
     # sd of a sample variance ~ var sqrt(2 / n); moved and unmoved chains are correlated, so
