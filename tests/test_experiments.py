@@ -345,3 +345,17 @@ def test_dask_scheduler_and_worker_processes_match_local_pool(tmp_path):
                 proc.kill()
                 proc.wait()
     assert _key(local) == _key(remote)
+
+
+def test_sampler_kernel_follows_the_weight_space_dimension():
+    settings = ex.SamplerSettings(2, 10, 1, 4, elliptical_up_to_dim=4)
+    assert (settings.kernel(4), settings.kernel(5), ex.SamplerSettings(2, 10, 1, 4).kernel(1)) == \
+        ("elliptical", "hmc", "hmc")
+    for up_to, kernel in ((4, "elliptical"), (3, "hmc")):  # side_effects: d = 4
+        spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(
+            2, 10, 1, 4, elliptical_up_to_dim=up_to)))
+        assert ex._posterior(spec, ex.trial_instance(spec), "sample_z").kernel == kernel
+    # the paper-scale defaults: Sample-Z's small weight spaces elliptical, 50-d HMC; MaxEnt-Z HMC
+    default = ex.TrialSpec("side_effects", 0)
+    assert (default.sampler("sample_z").kernel(4), default.sampler("sample_z").kernel(50),
+            default.sampler("maxent_z").kernel(4)) == ("elliptical", "hmc", "hmc")
