@@ -114,11 +114,13 @@ class SamplerSettings:
     per chain (``inference.RunUntil``; no time budget, so a trial stays a pure function of its
     spec and reproduces bit for bit on any machine).
 
-    ``elliptical_up_to_dim``: weight spaces of at most this many dimensions are sampled with the
-    gradient-free elliptical slice kernel instead of HMC (0: never). Why: on Sample-Z at beta 50
-    (``scripts/bench_inference.py --levers``) it converged every side_effects run at ~6x less CPU
-    than 4-chain HMC, which converged 1 of 3; in d = 50 its Gaussian is not learnt in the
-    warm-up and HMC is better (latent_classifier: 0 of 3 against 3 of 3).
+    ``kernel``: ``"hmc"`` or ``"elliptical"`` (the gradient-free slice kernel). ``small``, if
+    set, replaces these settings for weight spaces of at most ``small_dim`` dimensions
+    (:meth:`for_dim`). Why: on Sample-Z at beta 50 (``scripts/bench_inference.py --levers``) the
+    elliptical kernel converged every side_effects run (d = 4) at ~4x less CPU than 4-chain HMC,
+    which converged 2 of 4; in d = 50 its Gaussian is not learnt in the warm-up and HMC is better
+    (latent_classifier: 0 of 3 against 3 of 3). With 8 chains and up to 600 iterations it
+    converged 12 of 12 reward_hacking posteriors (4 chains, 300: 62 of 100 in the default run).
     """
 
     num_chains: int
@@ -126,19 +128,23 @@ class SamplerSettings:
     thin: int
     max_leapfrog: int
     max_iterations: int = 0
-    elliptical_up_to_dim: int = 0
+    kernel: str = "hmc"
+    small_dim: int = 0
+    small: "SamplerSettings | None" = None
 
     def __post_init__(self) -> None:
         for name in ("num_chains", "thin", "max_leapfrog"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
-        for name in ("warmup", "max_iterations", "elliptical_up_to_dim"):
+        for name in ("warmup", "max_iterations", "small_dim"):
             if int(getattr(self, name)) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if self.kernel not in ("hmc", "elliptical"):
+            raise ValueError(f"kernel must be 'hmc' or 'elliptical', got {self.kernel!r}")
 
-    def kernel(self, dim: int) -> str:
-        """The MCMC kernel for a ``dim``-dimensional weight space."""
-        return "elliptical" if dim <= self.elliptical_up_to_dim else "hmc"
+    def for_dim(self, dim: int) -> "SamplerSettings":
+        """The settings for a ``dim``-dimensional weight space: ``small`` up to ``small_dim``."""
+        return self.small if self.small is not None and dim <= self.small_dim else self
 
     def run_until(self) -> "inference.RunUntil | None":
         """The ``until_converged`` criteria, or None for a fixed-length run."""
@@ -174,11 +180,12 @@ class TrialSpec:
     max_leapfrog: int = 16
     num_proxy_samples: int = 100
     factorial_samples: int = 16
-    traj_time_limit: float = 0.5
+    traj_time_limit: float = 0.3
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
-    sample_z_sampler: SamplerSettings | None = SamplerSettings(4, 100, 4, 32, 300, elliptical_up_to_dim=10)
+    sample_z_sampler: SamplerSettings | None = SamplerSettings(
+        4, 100, 4, 32, 300, small_dim=10, small=SamplerSettings(8, 100, 4, 32, 600, kernel="elliptical"))
     maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000)
 
     def __post_init__(self) -> None:
@@ -253,14 +260,14 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) ->
     observations = lavaland.proxy_observations(
         inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
         spec.prior_sigma)
-    settings = spec.sampler(method)
+    settings = spec.sampler(method).for_dim(observations[0].dim)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return inference.sample_joint_posterior(
             observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
             num_chains=settings.num_chains, warmup=settings.warmup, thin=settings.thin,
             max_leapfrog=settings.max_leapfrog, until_converged=settings.run_until(),
-            kernel=settings.kernel(observations[0].dim))
+            kernel=settings.kernel)
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:

@@ -494,19 +494,19 @@ def _quick_samplers(args) -> dict:
 
 def z_samplers(args) -> dict:
     """``{"<method>_sampler": SamplerSettings}`` from --z-sampler (ValueError naming the bad item)."""
-    names = [f.name for f in dataclasses.fields(ex.SamplerSettings)]
+    names = [f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("int", int)]
     out = _quick_samplers(args)
     base = ex.TrialSpec("side_effects", 0, **{f: getattr(args, f) for f in SPEC_FLAGS}, **out)
     for method, *items in args.z_sampler:
         if method not in ex.Z_METHODS:
             raise ValueError(f"--z-sampler: method must be one of {ex.Z_METHODS}, got {method!r}")
-        values = dataclasses.asdict(base.sampler(method))
+        values = {}
         for item in items:
             key, _, value = item.partition("=")
             if key not in names or not value.lstrip("-").isdigit():
                 raise ValueError(f"--z-sampler {method}: expected FIELD=INTEGER with FIELD in {names}, got {item!r}")
             values[key] = int(value)
-        out[f"{method}_sampler"] = ex.SamplerSettings(**values)
+        out[f"{method}_sampler"] = dataclasses.replace(base.sampler(method), **values)
     return out
 
 
@@ -561,7 +561,9 @@ def main(argv: list[str] | None = None) -> int:
             f"Trajectory plans: exact solver, {args.traj_time_limit:g} s limit per plan; "
             f"{sum(r.fallback for r in traj)} of {len(traj)} trajectory plans hit the limit and fell back to the "
             f"per-step plan of the same samples (column `fallbacks`).") if traj else ""
-    shown = dict(settings, trials=trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+    effective = ex.TrialSpec(conditions[0], 0, **settings)  # each method's sampler, defaults included
+    shown = dict(settings, **{f"{z}_sampler": effective.sampler(z) for z in ex.Z_METHODS}, trials=trials,
+                 seed=args.seed, workers=args.workers, scheduler=args.scheduler)
     write_markdown(args.out / "results.md", summaries, shown, wall, command, note)
     figures = plot_figures(args.out, summaries)
     (args.out / "run.json").write_text(json.dumps({"command": command, "wall_seconds": wall, "settings": shown,

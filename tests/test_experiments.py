@@ -347,15 +347,19 @@ def test_dask_scheduler_and_worker_processes_match_local_pool(tmp_path):
     assert _key(local) == _key(remote)
 
 
-def test_sampler_kernel_follows_the_weight_space_dimension():
-    settings = ex.SamplerSettings(2, 10, 1, 4, elliptical_up_to_dim=4)
-    assert (settings.kernel(4), settings.kernel(5), ex.SamplerSettings(2, 10, 1, 4).kernel(1)) == \
-        ("elliptical", "hmc", "hmc")
-    for up_to, kernel in ((4, "elliptical"), (3, "hmc")):  # side_effects: d = 4
+def test_sampler_settings_follow_the_weight_space_dimension():
+    small = ex.SamplerSettings(3, 10, 1, 4, kernel="elliptical")
+    settings = ex.SamplerSettings(2, 10, 1, 4, small_dim=4, small=small)
+    assert (settings.for_dim(4), settings.for_dim(5), ex.SamplerSettings(2, 10, 1, 4).for_dim(1).kernel) == \
+        (small, settings, "hmc")
+    with pytest.raises(ValueError, match="kernel"):
+        ex.SamplerSettings(2, 10, 1, 4, kernel="nuts")
+    for small_dim, kernel, chains in ((4, "elliptical", 3), (3, "hmc", 2)):  # side_effects: d = 4
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(
-            2, 10, 1, 4, elliptical_up_to_dim=up_to)))
-        assert ex._posterior(spec, ex.trial_instance(spec), "sample_z").kernel == kernel
+            2, 10, 1, 4, small_dim=small_dim, small=small)))
+        post = ex._posterior(spec, ex.trial_instance(spec), "sample_z")
+        assert (post.kernel, post.num_chains) == (kernel, chains)
     # the paper-scale defaults: Sample-Z's small weight spaces elliptical, 50-d HMC; MaxEnt-Z HMC
     default = ex.TrialSpec("side_effects", 0)
-    assert (default.sampler("sample_z").kernel(4), default.sampler("sample_z").kernel(50),
-            default.sampler("maxent_z").kernel(4)) == ("elliptical", "hmc", "hmc")
+    assert (default.sampler("sample_z").for_dim(4).kernel, default.sampler("sample_z").for_dim(50).kernel,
+            default.sampler("maxent_z").for_dim(4).kernel) == ("elliptical", "hmc", "hmc")
