@@ -12,9 +12,10 @@ Modules:
     inference         the IRD posterior's public namespace (re-exports the four below)
     likelihoods       per-term log likelihoods and gradients; proxy feature counts
     evidence          proxy and choice observations; the joint posterior
-    sampler           Laplace start, HMC sampling, warm start, run until converged
+    laplace           the sampler's start: the posterior mode and a covariance there
+    sampler           the posterior sampler: HMC / elliptical chains, warm start, run until converged
     checks            argument validation and numeric ranges
-    mcmc_kernels      RWM, MALA, HMC as init/step pairs (blackjax-shaped)
+    mcmc_kernels      RWM, MALA, HMC, elliptical slice as init/step pairs (blackjax-shaped)
     mcmc              warm-up schedule, sample_chains, continue_chains
     diagnostics       split / rank-normalised R-hat, ESS
     queries           information gain, query proposal, the simulated designer

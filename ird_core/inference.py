@@ -43,7 +43,7 @@ benchmark (``scripts/bench_inference.py``):
    can stall far from the mode (latent_raw, 100 proxies: log density -2.1 near ``w = 0`` against
    +33.4 at the mode). A stalled Newton (no ascent while its decrement is above 1e-3) is followed
    by L-BFGS with exact gradients, and the covariance's axes are narrowed to the measured extent
-   of the log density along them (``_profile_widths``): the Hessian at a crease overstated it up
+   of the log density along them (``ird_core.laplace``): the Hessian at a crease overstated it up
    to 1000x, which held HMC's step at ~5e-4. Smooth posteriors (MaxEnt-Z) never take this path.
 2. ``num_chains`` (16) chains start at ``mode + 2 L z`` (``L L^T`` the Laplace covariance), i.e.
    overdispersed relative to the Laplace approximation, in the spirit of Gelman & Rubin (1992).

@@ -91,7 +91,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int) -> None
     import warnings
     from unittest import mock
 
-    from ird_core import experiments, sampler
+    from ird_core import experiments, laplace
 
     print(f"levers at beta {beta:g}, {samples} samples, 100 Sample-Z proxies, seeds 0-{seeds - 1}:")
     print(f"{'condition':<18} {'lever':<28} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
@@ -105,8 +105,8 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int) -> None
                 obs = lavaland.proxy_observations(inst, 100 if method == "sample_z" else None, seed + 100, 1.0)
                 settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method),
                                                num_chains=chains)
-                stall = math.inf if newton_only else sampler._NEWTON_STALL
-                with mock.patch.object(sampler, "_NEWTON_STALL", stall), warnings.catch_warnings():
+                stall = math.inf if newton_only else laplace._NEWTON_STALL
+                with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
                     cpu = time.process_time()
                     post = inference.sample_joint_posterior(

@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import minimize
 
 from ird_core import inference as I
-from ird_core import lavaland, mcmc, sampler
+from ird_core import lavaland, laplace, mcmc
 from ird_core.evidence import make_joint_model
 from ird_core.mdp import GridMDP
 from _quadrature import quadrature_moments
@@ -89,10 +89,10 @@ def test_laplace_start_finds_the_mode_past_a_stalled_newton(condition: str, size
                                                             beta: float, seed: int,
                                                             monkeypatch: pytest.MonkeyPatch) -> None:
     model = _creased_model(condition, size, horizon, beta, seed)
-    mode, cov = sampler.laplace_approximation(model)
+    mode, cov = laplace.laplace_approximation(model)
     with monkeypatch.context() as patch:
-        patch.setattr(sampler, "_NEWTON_STALL", np.inf)  # Newton alone
-        newton, _ = sampler.laplace_approximation(model)
+        patch.setattr(laplace, "_NEWTON_STALL", np.inf)  # Newton alone
+        newton, _ = laplace.laplace_approximation(model)
     value = float(model.log_density(mode[None])[0])
     assert value > float(model.log_density(newton[None])[0]) + 0.1  # Newton had stalled
 
@@ -112,9 +112,9 @@ def test_smooth_posteriors_keep_the_newton_laplace_start(monkeypatch: pytest.Mon
     inst = lavaland.make_instance("latent_raw", 1, size=15, horizon=30, obs_dim=4)
     model = make_joint_model(lavaland.proxy_observations(inst, None, 3, 1.0), 50.0, "maxent_z", 1.0)
     calls: list[str] = []
-    monkeypatch.setattr(sampler, "_quasi_newton_mode", lambda *a: calls.append("lbfgs"))
-    monkeypatch.setattr(sampler, "_profile_widths", lambda *a: calls.append("profile"))
-    sampler.laplace_approximation(model)
+    monkeypatch.setattr(laplace, "_quasi_newton_mode", lambda *a: calls.append("lbfgs"))
+    monkeypatch.setattr(laplace, "_profile_widths", lambda *a: calls.append("profile"))
+    laplace.laplace_approximation(model)
     assert calls == []
 
 
@@ -135,11 +135,11 @@ def test_profile_keeps_an_exact_gaussian_and_corrects_an_overstated_one() -> Non
     a = np.array([[1.0, 0.4, 0.0], [0.0, 0.5, 0.2], [0.3, 0.0, 0.2]])
     cov = a @ a.T + 0.05 * np.eye(3)
     model = _Quadratic(mean, cov)
-    np.testing.assert_allclose(sampler._profile_widths(model, mean, cov), cov, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(laplace._profile_widths(model, mean, cov), cov, rtol=1e-12, atol=1e-14)
     # Axes overstated by 2^5 in sd (1024 in variance) are found exactly: widths are powers of 2.
     eigval, eigvec = np.linalg.eigh(cov)
     inflated = (eigvec * (eigval * 4.0 ** np.array([5, 0, 3]))) @ eigvec.T
-    np.testing.assert_allclose(sampler._profile_widths(model, mean, inflated), cov, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(laplace._profile_widths(model, mean, inflated), cov, rtol=1e-9, atol=1e-12)
 
 
 def test_profile_narrows_a_crease() -> None:
@@ -150,7 +150,7 @@ def test_profile_narrows_a_crease() -> None:
         def log_density(self, x: np.ndarray) -> np.ndarray:
             return -np.abs(x) @ slope
 
-    width = np.sqrt(np.diag(sampler._profile_widths(Crease(), np.zeros(2), np.eye(2))))
+    width = np.sqrt(np.diag(laplace._profile_widths(Crease(), np.zeros(2), np.eye(2))))
     # Read at the largest 2^-k with drop s 2^-k <= 3 nats, as a Gaussian: 2^-k sqrt(0.5 / (s 2^-k)).
     assert 0.85 / slope[0] < width[0] <= 1.25 / slope[0]
     np.testing.assert_allclose(width[1], np.sqrt(0.5), rtol=1e-12)  # slope 1: read at the full axis
@@ -170,5 +170,5 @@ def test_the_mode_start_lets_short_chains_converge_on_a_creased_posterior(monkey
             return I.sample_joint_posterior(observations, 50.0, "sample_z", 64, 0, kernel=kernel, **settings).r_hat_max
 
     assert r_hat("hmc") <= 1.05 and r_hat("elliptical") <= 1.1
-    monkeypatch.setattr(sampler, "_NEWTON_STALL", np.inf)
+    monkeypatch.setattr(laplace, "_NEWTON_STALL", np.inf)
     assert r_hat("elliptical") > 1.2
