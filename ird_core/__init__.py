@@ -13,14 +13,15 @@ Modules:
     likelihoods       per-term log likelihoods and gradients; proxy feature counts
     evidence          proxy and choice observations; the joint posterior
     laplace           the sampler's start: the posterior mode and a covariance there
-    sampler           the posterior sampler: HMC / elliptical chains, warm start, run until converged
+    sampler           the posterior sampler: HMC / slice / independence chains, warm start, run until converged
     checks            argument validation and numeric ranges
-    mcmc_kernels      RWM, MALA, HMC, elliptical slice as init/step pairs (blackjax-shaped)
+    mcmc_kernels      RWM, MALA, HMC, elliptical slice, independence MH as init/step pairs (blackjax-shaped)
     mcmc              warm-up schedule, sample_chains, continue_chains
     diagnostics       split / rank-normalised R-hat, ESS
     queries           information gain, query proposal, the simulated designer
     planning          literal and risk-averse planners, reward baselines, risk map
-    trajectory_solver the exact trajectory-min solver (label search, MILP)
+    trajectory_solver the exact trajectory-min solver (label search, MILP), time or work limited
+    trajectory_bounds exact DP tables over the time-expanded graph (the trajectory solver's bounds)
     experiments       the paper's experiments (Figure 4, appendix factorial)
     active            the designer-in-the-loop experiment
     render            PNG pictures of maps and paths

@@ -64,7 +64,7 @@ from typing import Iterable, Sequence
 import numpy as np
 from scipy import stats
 
-from ird_core import inference, lavaland, mdp, planning, world_file
+from ird_core import inference, lavaland, mcmc, mdp, planning, world_file
 
 __all__ = [
     "Z_METHODS",
@@ -114,13 +114,20 @@ class SamplerSettings:
     per chain (``inference.RunUntil``; no time budget, so a trial stays a pure function of its
     spec and reproduces bit for bit on any machine).
 
-    ``kernel``: ``"hmc"`` or ``"elliptical"`` (the gradient-free slice kernel). ``small``, if
-    set, replaces these settings for weight spaces of at most ``small_dim`` dimensions
-    (:meth:`for_dim`). Why: on Sample-Z at beta 50 (``scripts/bench_inference.py --levers``) the
-    elliptical kernel converged every side_effects run (d = 4) at ~4x less CPU than 4-chain HMC,
-    which converged 2 of 4; in d = 50 its Gaussian is not learnt in the warm-up and HMC is better
-    (latent_classifier: 0 of 3 against 3 of 3). With 8 chains and up to 600 iterations it
-    converged 12 of 12 reward_hacking posteriors (4 chains, 300: 62 of 100 in the default run).
+    ``kernel``: one of ``mcmc.KERNELS``. ``small``, if set, replaces these settings for weight
+    spaces of at most ``small_dim`` dimensions (:meth:`for_dim`). ``give_up_after``: 0, or stop
+    a run whose split R-hat is still above ``inference.GIVE_UP_R_HAT`` after that many
+    iterations (``inference.RunUntil.give_up_after``).
+
+    The defaults, measured on Sample-Z at beta 50 (15x15, T = 30, 100 proxies):
+
+    - d <= 10 (side_effects, reward_hacking): 8 chains of ``independence_elliptical`` (a
+      t-proposal jump around the fitted Gaussian, then a slice move) converged 20 of 20 runs
+      (seeds 0-9 of each) at 1.9-3.6 s for most and 18-21 s for the two slowest. The
+      elliptical kernel alone converged 14 of 16 at twice the CPU of independence steps alone,
+      which converged 13 of 16 (their failures: chains stuck where the t proposal is thin).
+    - d = 50: HMC (4 chains). In latent_raw no sampler tried converges within any affordable
+      budget (README, Results), so runs still above R-hat 1.4 after 50 iterations give up.
     """
 
     num_chains: int
@@ -131,16 +138,17 @@ class SamplerSettings:
     kernel: str = "hmc"
     small_dim: int = 0
     small: "SamplerSettings | None" = None
+    give_up_after: int = 0
 
     def __post_init__(self) -> None:
         for name in ("num_chains", "thin", "max_leapfrog"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
-        for name in ("warmup", "max_iterations", "small_dim"):
+        for name in ("warmup", "max_iterations", "small_dim", "give_up_after"):
             if int(getattr(self, name)) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        if self.kernel not in ("hmc", "elliptical"):
-            raise ValueError(f"kernel must be 'hmc' or 'elliptical', got {self.kernel!r}")
+        if self.kernel not in mcmc.KERNELS:
+            raise ValueError(f"kernel must be one of {mcmc.KERNELS}, got {self.kernel!r}")
 
     def for_dim(self, dim: int) -> "SamplerSettings":
         """The settings for a ``dim``-dimensional weight space: ``small`` up to ``small_dim``."""
@@ -151,7 +159,7 @@ class SamplerSettings:
         if self.max_iterations == 0:
             return None
         return inference.RunUntil(r_hat=RUN_UNTIL_R_HAT, min_ess=0.0, ess_per_sample=0.5,
-                                  max_iterations=self.max_iterations)
+                                  max_iterations=self.max_iterations, give_up_after=self.give_up_after)
 
 
 @dataclass(frozen=True)
@@ -180,12 +188,13 @@ class TrialSpec:
     max_leapfrog: int = 16
     num_proxy_samples: int = 100
     factorial_samples: int = 16
-    traj_time_limit: float = 0.3
+    traj_work_limit: int = 50_000
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
-        4, 100, 4, 32, 300, small_dim=10, small=SamplerSettings(8, 100, 4, 32, 600, kernel="elliptical"))
+        4, 100, 4, 32, 300, small_dim=10, give_up_after=50,
+        small=SamplerSettings(8, 200, 4, 32, 2000, kernel="independence_elliptical"))
     maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000)
 
     def __post_init__(self) -> None:
@@ -204,7 +213,7 @@ class TrialSpec:
 
 #: The small setting for a fast look (``run_experiments.py --quick``; ``ird_core.active``'s defaults).
 QUICK: dict = {"size": 8, "horizon": 12, "obs_dim": 10, "num_samples": 64, "num_chains": 4, "warmup": 50, "thin": 4,
-               "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_time_limit": 2.0,
+               "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_work_limit": 1_000_000,
                "sample_z_sampler": None, "maxent_z_sampler": None}
 
 
@@ -304,7 +313,7 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
                                    MAIN_GRANULARITY, MAIN_BASELINE, *_outcome(inst, main.cells),
                                    main.objective, main.solver, False, *diag, main.cells))
         if spec.factorial:
-            plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_time_limit)
+            plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_work_limit)
             for (gran, base), (plan, fallback) in plans.items():
                 results.append(TrialResult("factorial", spec.condition, spec.seed, f"{method}/{gran}/{base}",
                                            method, gran, base, *_outcome(inst, plan.cells), plan.objective,
@@ -312,17 +321,18 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
     return results
 
 
-def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarray, time_limit: float
+def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarray, work_limit: int
                      ) -> dict[tuple[str, str], tuple[planning.Plan, bool]]:
     """Every granularity x baseline plan of the same ``(N, d)`` samples, with its fallback flag
-    (the trajectory solver hit ``time_limit``: the per_step plan of the same samples stands in)."""
+    (the trajectory solver hit ``work_limit`` label expansions: the per_step plan of the same
+    samples stands in). A work limit, not a time limit, so a trial is the same on any machine."""
     plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}
     for base in BASELINES:
         plans["per_step", base] = (planning.plan_path(test, samples, "per_step", base, reference), False)
     for base in BASELINES:
         try:
             plans["trajectory", base] = (planning.plan_path(test, samples, "trajectory", base, reference,
-                                                            time_limit=time_limit), False)
+                                                            work_limit=work_limit), False)
         except RuntimeError:
             plans["trajectory", base] = (plans["per_step", base][0], True)
     return plans

@@ -41,7 +41,7 @@ import numpy as np
 
 from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT, check_magnitude
 from ird_core.mdp import GridMDP, log_partition, optimal_path, validate_path
-from ird_core.trajectory_solver import OutOfTime, plan_trajectory, states_to_cells
+from ird_core.trajectory_solver import OutOfTime, check_work_limit, plan_trajectory, states_to_cells
 
 __all__ = [
     "MODES",
@@ -100,16 +100,18 @@ class Plan:
 
 
 class PlanningTimeout(RuntimeError):
-    """``plan_path`` ran out of ``time_limit`` before proving optimality.
+    """``plan_path`` ran out of ``time_limit`` or ``work_limit`` before proving optimality.
 
     Attributes:
         plan: the best path found so far, its exact objective, and in ``plan.bound`` the best
             proven upper bound on the optimum (so ``plan.bound - plan.objective`` is the gap).
+        reason: ``"time"`` or ``"work"``, the limit that stopped the plan (the message starts
+            with its name, ``time_limit:`` or ``work_limit:``).
     """
 
-    def __init__(self, message: str, plan: "Plan") -> None:
+    def __init__(self, message: str, plan: "Plan", reason: str = "time") -> None:
         super().__init__(message)
-        self.plan = plan
+        self.plan, self.reason = plan, reason
 
 
 # --------------------------------------------------------------------------- validation
@@ -165,6 +167,7 @@ def check_plan_arguments(
     *,
     solver: str | None = None,
     time_limit: float | None = None,
+    work_limit: int | None = None,
 ) -> np.ndarray | None:
     """The argument checks of :func:`plan_path` that need no planning.
 
@@ -175,8 +178,8 @@ def check_plan_arguments(
     Returns:
         ``weights`` as a finite ``(K, d)`` float64 array (``None`` if not given).
     Raises:
-        ValueError: naming ``mode``, ``baseline``, ``solver``, ``time_limit``, ``weights`` or
-            ``reference_features``.
+        ValueError: naming ``mode``, ``baseline``, ``solver``, ``time_limit``, ``work_limit``,
+            ``weights`` or ``reference_features``.
     """
     _check_choice(mode, "mode", MODES)
     _check_choice(baseline, "baseline", BASELINES)
@@ -185,6 +188,7 @@ def check_plan_arguments(
     if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
                                    or not time_limit > 0):
         raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
+    check_work_limit(work_limit, solver)
     if weights is None or num_features is None:
         return None
     w = _check_weights(weights, num_features)
@@ -327,6 +331,7 @@ def plan_path(
     *,
     solver: str | None = None,
     time_limit: float | None = None,
+    work_limit: int | None = None,
 ) -> Plan:
     """Plan a path maximising the objective of ``mode``.
 
@@ -350,25 +355,30 @@ def plan_path(
             :func:`reward_baselines`).
         solver: ``None`` (automatic) or one of ``SOLVERS[mode]``.
         time_limit: seconds > 0 for ``trajectory`` (``None``: no limit).
+        work_limit: label expansions >= 1 for ``trajectory`` (``None``: no limit): a
+            deterministic limit, so the same inputs stop at the same point on every machine
+            (see :mod:`ird_core.trajectory_solver`); not with ``solver="milp-highs"``. With
+            both limits, whichever is reached first stops the plan.
     Returns:
         a :class:`Plan`.
     Raises:
-        PlanningTimeout: ``time_limit`` passed first; its ``plan`` is the best path so far.
+        PlanningTimeout: a limit was reached first; its ``plan`` is the best path so far and its
+            ``reason`` the limit (``"time"`` or ``"work"``).
         RuntimeError: HiGHS failed, ``solver="label-bb"`` ran out of memory budget, or the
             objective is not finite.
     """
     w = check_plan_arguments(mode, baseline, weights, mdp.num_features, reference_features,
-                             solver=solver, time_limit=time_limit)
+                             solver=solver, time_limit=time_limit, work_limit=work_limit)
     assert w is not None
     check_magnitude("features", mdp.features, MAX_ABS_FEATURE)
-    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit)
+    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit, check_work_limit(work_limit, solver))
     if not np.isfinite(plan.objective):  # unreachable within the checked ranges; never a success
         raise RuntimeError(f"objective: {plan.objective!r} is not finite; no plan is returned")
     return plan
 
 
 def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_features: np.ndarray | None,
-          solver: str | None, time_limit: float | None) -> Plan:
+          solver: str | None, time_limit: float | None, work_limit: int | None = None) -> Plan:
     """:func:`plan_path` on checked arguments."""
     b = reward_baselines(mdp, w, baseline, reference_features)
     q = _shifted_rewards(mdp, w, b)
@@ -381,13 +391,14 @@ def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_featu
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
     try:
-        cells, bound, used = plan_trajectory(mdp, q, solver=solver, time_limit=time_limit)
+        cells, bound, used = plan_trajectory(mdp, q, solver=solver, time_limit=time_limit, work_limit=work_limit)
     except OutOfTime as exc:
         cells = states_to_cells(mdp, exc.states)
         value = _objective(mdp, cells, w, b, mode)
         plan = Plan(_as_cells(cells), value, mode, baseline, exc.solver, max(exc.bound, value))
-        raise PlanningTimeout(f"time_limit: {time_limit} s passed before the trajectory optimum was proven; "
-                              f"best objective {value:.6g}, upper bound {plan.bound:.6g}", plan) from None
+        limit = f"time_limit: {time_limit} s passed" if exc.reason == "time" else f"work_limit: {work_limit}: {exc}"
+        raise PlanningTimeout(f"{limit} before the trajectory optimum was proven; "
+                              f"best objective {value:.6g}, upper bound {plan.bound:.6g}", plan, exc.reason) from None
     value = _objective(mdp, cells, w, b, mode)
     return Plan(_as_cells(cells), value, mode, baseline, used, max(bound, value))
 

@@ -54,6 +54,7 @@ __all__ = [
     "DEFAULT_WARMUP_MAX_LEAPFROG",
     "DEFAULT_INIT_SCALE",
     "R_HAT_CONVERGED",
+    "GIVE_UP_R_HAT",
     "laplace_approximation",
     "Posterior",
     "RunUntil",
@@ -126,6 +127,10 @@ class RunUntil:
             returned draws are worth at least half their number).
         max_iterations: cap on post-warm-up iterations per chain.
         time_budget_s: wall-clock safety stop in seconds, or None.
+        give_up_after: 0 (never), or stop at the first check after at least this many
+            post-warm-up iterations whose split R-hat is still above ``GIVE_UP_R_HAT``
+            (``stop_reason`` "futile"): a run that far off spends its remaining budget for
+            nothing. Deterministic, like ``max_iterations``.
     """
 
     r_hat: float = 1.05
@@ -133,6 +138,7 @@ class RunUntil:
     ess_per_sample: float = 0.5
     max_iterations: int = 2000
     time_budget_s: "float | None" = None
+    give_up_after: int = 0
 
     def __post_init__(self) -> None:
         if not check_real("until_converged.r_hat", self.r_hat, positive=True) >= 1.0:
@@ -140,6 +146,7 @@ class RunUntil:
         check_real("until_converged.min_ess", self.min_ess, positive=False)
         check_real("until_converged.ess_per_sample", self.ess_per_sample, positive=False)
         check_int("until_converged.max_iterations", self.max_iterations, 1)
+        check_int("until_converged.give_up_after", self.give_up_after, 0)
         if self.time_budget_s is not None:
             check_real("until_converged.time_budget_s", self.time_budget_s, positive=True)
 
@@ -178,8 +185,8 @@ class Posterior:
         warm_started: True if the run started from a previous posterior (``initial=``).
         run_until: the ``RunUntil`` criteria of the run, or None (fixed length).
         iterations: post-warm-up iterations per chain that were run (0: not recorded).
-        stop_reason: with ``run_until``: ``"converged"``, ``"max_iterations"`` or
-            ``"time_budget"``; else ``""``.
+        stop_reason: with ``run_until``: ``"converged"``, ``"max_iterations"``, ``"futile"``
+            (``RunUntil.give_up_after``) or ``"time_budget"``; else ``""``.
     """
 
     samples: np.ndarray
@@ -229,7 +236,8 @@ class Posterior:
         if self.converged:
             return f"{head}, converged after {self.iterations} iterations per chain"
         bound = (f"time budget {rule.time_budget_s:g} s spent" if self.stop_reason == "time_budget" else
-                 f"iteration cap {rule.max_iterations} reached" if self.stop_reason == "max_iterations" else "stopped")
+                 f"iteration cap {rule.max_iterations} reached" if self.stop_reason == "max_iterations" else
+                 f"given up (R-hat above {GIVE_UP_R_HAT:g})" if self.stop_reason == "futile" else "stopped")
         need = rule.required_ess(self.num_samples)
         return (f"{head}, not converged: {bound} after {self.iterations} iterations per chain, "
                 f"R-hat {self.r_hat_max:.3f} (target <= {rule.r_hat:g}), ESS {self.ess_min:.0f} "
@@ -467,6 +475,12 @@ class _Run(NamedTuple):
     stop_reason: str
 
 
+#: ``RunUntil.give_up_after``'s threshold. Measured on Sample-Z at beta 50 in d = 50 (4 HMC chains,
+#: checks at 64 iterations, then every 50 up to 300): latent_classifier runs, which converge by
+#: 300, never showed a window R-hat above 1.16 at any check, nor above 1.12 at the first (10
+#: runs); latent_raw runs, which never converge, never one below 1.58 (6 runs).
+GIVE_UP_R_HAT: float = 1.4
+
 #: Smallest block by which ``RunUntil`` extends the chains (diagnostics cost little, but a
 #: block of a few iterations would re-test nearly the same draws).
 _MIN_BLOCK: int = 50
@@ -494,6 +508,8 @@ def _run_until(target: mcmc.LogDensityFn, starts: np.ndarray, first: int, per_ch
         ess = mcmc.bulk_effective_sample_size(window) if w >= 8 else np.full(states.shape[2], np.nan)
         if np.max(r_hat) <= rule.r_hat and np.nanmin(ess, initial=np.inf) >= need and not np.any(np.isnan(ess)):
             reason = "converged"
+        elif rule.give_up_after and n >= rule.give_up_after and np.max(r_hat) > GIVE_UP_R_HAT:
+            reason = "futile"
         elif n >= cap:
             reason = "max_iterations"
         elif rule.time_budget_s is not None and time.monotonic() - started >= rule.time_budget_s:

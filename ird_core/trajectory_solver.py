@@ -27,6 +27,15 @@ over time steps. :func:`plan_trajectory` solves it exactly:
    rewards normalised to ``|q| <= 1``; a false "infeasible" (a HiGHS 1.12 presolve error;
    the model always holds the incumbent) is retried without presolve.
 
+Limits. ``time_limit`` is wall-clock seconds. ``work_limit`` counts label expansions: the child
+labels the label searches generate (every beam search and the exact search, before pruning),
+checked per memory chunk. A plan finishes under ``work_limit`` exactly when its total count is
+at most the limit, so where it stops depends on its inputs only, never on the machine; under a
+work limit alone the clock is never read. The column-generation LP is bounded by its round count,
+and the MILP is never used under a work limit (its time has no deterministic bound): where the
+automatic choice would fall back on it, the plan stops as if out of work. Either limit raises
+:class:`OutOfTime` with the best path so far and a proven upper bound.
+
 No relaxation is ever returned as a plan: the LP relaxation only supplies bounds. Exactness:
 a path better than the returned one by more than ``2e-12 * (T + 1) * max|q|`` (float rounding
 slack) does not exist, for ``label-bb``; for ``milp-highs`` up to HiGHS's tolerances as well.
@@ -34,8 +43,8 @@ slack) does not exist, for ``label-bb``; for ``milp-highs`` up to HiGHS's tolera
 States are flat indices ``s = row * W + col`` (``S = H * W``); rewards arrive as ``(K, S)``
 (or ``(K, H, W)`` for :func:`plan_trajectory`). Everything is vectorised over samples, labels,
 cells and edges; Python loops run over time steps, solver iterations and memory chunks only.
-The public entry points are :func:`plan_trajectory`, :class:`OutOfTime` and
-:func:`states_to_cells`; :mod:`ird_core.planning` wraps them into ``plan_path``.
+The public entry points are :func:`plan_trajectory`, :class:`OutOfTime`, :func:`check_work_limit`
+and :func:`states_to_cells`; :mod:`ird_core.planning` wraps them into ``plan_path``.
 """
 
 from __future__ import annotations
@@ -49,9 +58,15 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 
-from ird_core.mdp import GridMDP, optimal_path, successor_table, validate_path
+from ird_core.mdp import GridMDP, successor_table, validate_path
+from ird_core.trajectory_bounds import best_returns as _best_returns
+from ird_core.trajectory_bounds import come_from as _come_from
+from ird_core.trajectory_bounds import path_states as _path_states
+from ird_core.trajectory_bounds import start_distance as _start_distance
+from ird_core.trajectory_bounds import to_go as _to_go
+from ird_core.trajectory_bounds import trajectory_value as _trajectory_value
 
-__all__ = ["OutOfTime", "plan_trajectory", "states_to_cells"]
+__all__ = ["OutOfTime", "check_work_limit", "plan_trajectory", "states_to_cells"]
 
 # HiGHS settings for the trajectory MILP: zero optimality gap, tight feasibility tolerances (the
 # problem is normalised so that per-cell rewards are at most 1 in magnitude).
@@ -81,25 +96,40 @@ class _BudgetExceeded(Exception):
 
 
 class OutOfTime(Exception):
-    """The time limit passed; carries the best path found (state indices or ``None``), the best
-    proven upper bound and the solver that was running."""
+    """A limit stopped the plan; carries the best path found (state indices or ``None``), the
+    best proven upper bound, the solver that was running, ``reason``: ``"time"`` (``time_limit``
+    passed) or ``"work"`` (``work_limit`` spent, or the label search's memory budget reached
+    where a work limit rules out the MILP fallback), and ``work``, the label expansions spent."""
 
-    def __init__(self, states: np.ndarray | None, bound: float = math.inf, solver: str = "") -> None:
-        super().__init__("time limit reached")
-        self.states, self.bound, self.solver = states, bound, solver
-
-
-def _start_distance(mdp: GridMDP) -> np.ndarray:
-    """``(S,)`` Manhattan distance of every state from the start: state ``s`` can be occupied at
-    time ``t`` iff ``dist[s] <= t`` (a "stay" move is always available)."""
-    rows, cols = np.divmod(np.arange(mdp.num_states), mdp.width)
-    return np.abs(rows - mdp.start[0]) + np.abs(cols - mdp.start[1])
+    def __init__(self, states: np.ndarray | None, bound: float = math.inf, solver: str = "",
+                 reason: str = "time", message: str = "", work: int = 0) -> None:
+        super().__init__(message or f"{reason} limit reached")
+        self.states, self.bound, self.solver, self.reason, self.work = states, bound, solver, reason, work
 
 
-def _successors(mdp: GridMDP) -> np.ndarray:
-    """``(S, 5)`` successor states, off-grid moves pointing at the sentinel index ``S``."""
-    table = successor_table(mdp.height, mdp.width)
-    return np.where(table < 0, mdp.num_states, table)
+class _Limits:
+    """A plan's stopping rules: a ``time.monotonic()`` deadline and a count of label expansions.
+
+    The clock is read only when a deadline was set, so a plan under ``work_limit`` alone is a
+    function of its inputs. ``work`` is the count spent so far.
+    """
+
+    def __init__(self, time_limit: float | None = None, work_limit: int | None = None) -> None:
+        self.deadline = math.inf if time_limit is None else time.monotonic() + time_limit
+        self.work_limit, self.work = work_limit, 0
+
+    def time_up(self) -> bool:
+        return not math.isinf(self.deadline) and time.monotonic() > self.deadline
+
+    def check_time(self) -> None:
+        if self.time_up():
+            raise OutOfTime(None, reason="time")
+
+    def spend(self, units: int) -> None:
+        """Count ``units`` expansions; raise once the total passes ``work_limit``."""
+        self.work += units
+        if self.work_limit is not None and self.work > self.work_limit:
+            raise OutOfTime(None, reason="work", message=f"work limit reached after {self.work} label expansions")
 
 
 def _reduce_samples(q: np.ndarray) -> np.ndarray:
@@ -129,63 +159,6 @@ def _reduce_samples(q: np.ndarray) -> np.ndarray:
     return kept[~dominated]
 
 
-def _to_go(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Best reward still to collect, ``V[t, j, s] = max sum_{u = t+1..T} rewards[j, s_u]`` over
-    walks with ``s_t = s``; ``V[T] = 0``. Hard DP vectorised over reward rows and states.
-
-    Args:
-        rewards: ``(m, S)``.
-    Returns:
-        ``(T + 1, m, S)``.
-    """
-    succ = _successors(mdp)
-    values = np.zeros((mdp.horizon + 1,) + rewards.shape)
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for t in range(mdp.horizon - 1, -1, -1):
-        values[t] = np.concatenate([rewards + values[t + 1], sentinel], axis=1)[:, succ].max(axis=2)
-    return values
-
-
-def _best_returns(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Each row's own optimum ``max_xi sum_t rewards[j, s_t]``; ``(m, S)`` -> ``(m,)``.
-    The same recursion as :func:`_to_go`, keeping one time step in memory."""
-    succ = _successors(mdp)
-    values = np.zeros_like(rewards)
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for _ in range(mdp.horizon):
-        values = np.concatenate([rewards + values, sentinel], axis=1)[:, succ].max(axis=2)
-    return values[:, mdp.start_state] + rewards[:, mdp.start_state]
-
-
-def _come_from(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """Best collected reward ``A[t, j, s] = max sum_{u = 0..t} rewards[j, s_u]`` over walks from
-    the start with ``s_t = s`` (``-inf`` where unreachable). Predecessors equal successors.
-
-    Args:
-        rewards: ``(m, S)``.
-    Returns:
-        ``(T + 1, m, S)``.
-    """
-    succ = _successors(mdp)
-    values = np.full((mdp.horizon + 1,) + rewards.shape, -np.inf)
-    values[0][:, mdp.start_state] = rewards[:, mdp.start_state]
-    sentinel = np.full((len(rewards), 1), -np.inf)
-    for t in range(1, mdp.horizon + 1):
-        values[t] = rewards + np.concatenate([values[t - 1], sentinel], axis=1)[:, succ].max(axis=2)
-    return values
-
-
-def _path_states(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
-    """``optimal_path`` for an ``(S,)`` reward, as ``(T + 1,)`` state indices."""
-    cells = validate_path(mdp, optimal_path(mdp, rewards.reshape(mdp.height, mdp.width))[0])
-    return cells[:, 0] * mdp.width + cells[:, 1]
-
-
-def _trajectory_value(q: np.ndarray, states: np.ndarray) -> float:
-    """``min_i sum_t q_i(s_t)`` for ``q`` ``(K, S)`` and a path of state indices."""
-    return float(q[:, states].sum(axis=1).min())
-
-
 @dataclass(frozen=True)
 class _Relaxation:
     """The LP relaxation ``max over mixtures of paths of min_i E[f_i]`` (equal to the MILP's LP
@@ -201,22 +174,22 @@ class _Relaxation:
 
 
 def _lp_relaxation(mdp: GridMDP, q: np.ndarray, seeds: list[np.ndarray], tol: float,
-                   deadline: float = math.inf) -> _Relaxation:
+                   limits: _Limits | None = None) -> _Relaxation:
     """Column generation: master LP over path columns (HiGHS), pricing by exact DP.
 
     Args:
         q: ``(K, S)`` shifted rewards.
         seeds: initial paths (state indices).
         tol: stop once pricing improves the master value by at most ``tol``.
-        deadline: ``time.monotonic()`` after which no further round starts; the rounds done
-            so far give valid (if looser) bounds.
+        limits: past their deadline no further round starts (the rounds done so far give
+            valid, if looser, bounds); the work limit does not apply (the round count bounds it).
     """
     k = len(q)
     paths = list(seeds)
     returns = [q[:, p].sum(axis=1) for p in paths]  # each (K,)
     multipliers, bound = [], np.inf
     for _ in range(_COLUMN_GENERATION_ITERATIONS):
-        if time.monotonic() > deadline and multipliers:
+        if multipliers and limits is not None and limits.time_up():
             break
         columns = np.stack(returns, axis=1)  # (K, m)
         m = columns.shape[1]
@@ -270,7 +243,7 @@ def _dominated(labels: np.ndarray, nodes: np.ndarray, depth: int) -> np.ndarray:
 
 
 def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                  slack: float, deadline: float = math.inf, beam: int | None = None) -> np.ndarray | None:
+                  slack: float, limits: _Limits | None = None, beam: int | None = None) -> np.ndarray | None:
     """Exact branch and bound over the time-expanded graph, breadth first (or a beam search).
 
     A label is a partial path to ``(t, s)`` with return vector ``P`` (K,). It is pruned when no
@@ -287,13 +260,16 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
 
     Args:
         q: ``(K, S)`` shifted rewards; multipliers: ``(m, K)`` simplex rows.
+        limits: checked before each memory chunk; every child label generated counts one unit
+            of work (``None``: no limits).
         beam: ``None`` (exact) or the beam width.
     Returns:
         states of the best path beating ``incumbent + slack``, or ``None`` if there is none.
     Raises:
         _BudgetExceeded: more than ``_LABEL_BUDGET`` label entries at some time step.
-        OutOfTime: ``time.monotonic()`` passed ``deadline``.
+        OutOfTime: a limit of ``limits`` was reached.
     """
+    limits = _Limits() if limits is None else limits
     k = len(q)
     if (mdp.horizon + 1) * mdp.num_states * (k + len(multipliers)) > _LABEL_BUDGET:
         raise _BudgetExceeded(f"bound tables of {k + len(multipliers)} rows over {mdp.horizon + 1} steps")
@@ -310,11 +286,11 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
     for t in range(1, mdp.horizon + 1):
         kept = []
         for lo in range(0, len(labels), chunk):  # bounded memory; vectorised inside
-            if time.monotonic() > deadline:
-                raise OutOfTime(None)
+            limits.check_time()
             nxt = succ[nodes[lo : lo + chunk]]
             parent, move = np.nonzero(nxt >= 0)
             child = nxt[parent, move]
+            limits.spend(len(child))
             parent += lo
             value = labels[parent] + q_t[child]
             bound = np.minimum((value + per_sample[t][child]).min(axis=1),
@@ -347,24 +323,28 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
 
 
 def plan_trajectory(
-    mdp: GridMDP, q_cells: np.ndarray, *, solver: str | None, time_limit: float | None
+    mdp: GridMDP, q_cells: np.ndarray, *, solver: str | None, time_limit: float | None,
+    work_limit: int | None = None,
 ) -> tuple[np.ndarray, float, str]:
     """Best path for ``min_i sum_t q_i(s_t)`` (see the module docstring for the algorithm).
 
     Args:
         mdp: the test MDP (grid, start, horizon ``T``).
         q_cells: ``(K, H, W)`` baseline-shifted per-cell rewards ``q_i``.
-        solver: ``None`` (label search, falling back on the MILP past its memory budget),
-            ``"label-bb"`` or ``"milp-highs"``.
+        solver: ``None`` (label search, falling back on the MILP past its memory budget unless
+            ``work_limit`` is set), ``"label-bb"`` or ``"milp-highs"``.
         time_limit: seconds > 0, or ``None`` for no limit.
+        work_limit: label expansions >= 1, or ``None`` for no limit; not with ``"milp-highs"``.
     Returns:
         ``(cells, bound, solver)``: the path's checked ``(T + 1, 2)`` cells, a proven upper
         bound on the optimum, and the solver that finished.
     Raises:
-        OutOfTime: the time limit passed first (carries the best path and bound so far).
+        OutOfTime: a limit was reached first (carries the best path, the bound so far and
+            which limit, ``reason``).
+        ValueError: ``work_limit`` with ``solver="milp-highs"``.
         RuntimeError: HiGHS failed, or ``solver="label-bb"`` ran out of memory budget.
     """
-    deadline = math.inf if time_limit is None else time.monotonic() + time_limit
+    limits = _Limits(time_limit, check_work_limit(work_limit, solver))
     q_all = q_cells.reshape(len(q_cells), -1)
     dist = _start_distance(mdp)
     reach = np.flatnonzero(dist <= mdp.horizon)
@@ -372,7 +352,7 @@ def plan_trajectory(
     slack = _CERTIFY_RTOL * (mdp.horizon + 1) * float(np.abs(q[:, reach]).max())
     own_best = _best_returns(mdp, q)
     seeds = [_path_states(mdp, q.min(axis=0)), _path_states(mdp, q[int(np.argmin(own_best))])]
-    relaxation = _lp_relaxation(mdp, q, seeds, tol=slack, deadline=deadline)
+    relaxation = _lp_relaxation(mdp, q, seeds, tol=slack, limits=limits)
     upper = min(relaxation.bound, float(own_best.min()))
     values = [_trajectory_value(q, p) for p in relaxation.paths]
     best, incumbent = relaxation.paths[int(np.argmax(values))], max(values)
@@ -381,35 +361,56 @@ def plan_trajectory(
         if used == "label-bb":
             if incumbent >= upper - slack:  # the LP relaxation is tight: no branching needed
                 return states_to_cells(mdp, best), upper, used
-            for width in _BEAM_WIDTHS:  # cheap heuristics first: a better incumbent prunes more
-                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline, beam=width)
-                if found is not None:
-                    best, incumbent = found, _trajectory_value(q, found)
             try:
-                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, deadline)
+                for width in _BEAM_WIDTHS:  # cheap heuristics first: a better incumbent prunes more
+                    found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, limits, beam=width)
+                    if found is not None:
+                        best, incumbent = found, _trajectory_value(q, found)
+                found = _label_search(mdp, q, relaxation.multipliers, incumbent, slack, limits)
             except _BudgetExceeded as exc:
                 if solver == "label-bb":
                     raise RuntimeError(f"trajectory label search over budget ({exc}); "
                                        "use solver='milp-highs'") from exc
+                if work_limit is not None:  # the MILP's time has no deterministic bound
+                    raise OutOfTime(None, reason="work", message=f"label search memory budget reached ({exc}) "
+                                    f"after {limits.work} label expansions; no MILP fallback under a work limit"
+                                    ) from None
                 used = "milp-highs"  # automatic choice: fall back on the MILP
             else:
                 if found is not None and _trajectory_value(q, found) > incumbent:
                     best, incumbent = found, _trajectory_value(q, found)
                 return states_to_cells(mdp, best), incumbent, used
-        if time.monotonic() > deadline:
-            raise OutOfTime(None)
+        limits.check_time()
         multipliers = np.concatenate([relaxation.multipliers, np.eye(len(q))])
         model = _build_trajectory_milp(mdp, q, _promising_nodes(mdp, q, multipliers, incumbent, slack, best))
-        cells, dual_bound = _solve_trajectory_milp(mdp, model, deadline)
+        cells, dual_bound = _solve_trajectory_milp(mdp, model, limits.deadline)
     except OutOfTime as exc:
         found = exc.states
         if found is not None and _trajectory_value(q, found) > incumbent:
             best, incumbent = found, _trajectory_value(q, found)
-        raise OutOfTime(best, max(incumbent, min(upper, exc.bound)), used) from None
+        bound = max(incumbent, min(upper, exc.bound))
+        raise OutOfTime(best, bound, used, exc.reason, str(exc), limits.work) from None
     found = cells[:, 0] * mdp.width + cells[:, 1]
     if _trajectory_value(q, found) > incumbent:  # else keep the incumbent (HiGHS tolerance)
         best, incumbent = found, _trajectory_value(q, found)
     return states_to_cells(mdp, best), max(incumbent, min(upper, dual_bound)), used
+
+
+def check_work_limit(work_limit: object, solver: str | None) -> int | None:
+    """``work_limit`` as an int >= 1 or ``None``.
+
+    Raises:
+        ValueError: naming ``work_limit``: not an int >= 1 (bools refused), or given with
+            ``solver="milp-highs"`` (HiGHS's running time has no deterministic bound).
+    """
+    if work_limit is None:
+        return None
+    if isinstance(work_limit, bool) or not isinstance(work_limit, (int, np.integer)) or work_limit < 1:
+        raise ValueError(f"work_limit: expected an int >= 1 (label expansions) or None, got {work_limit!r}")
+    if solver == "milp-highs":
+        raise ValueError("work_limit: not supported by solver='milp-highs' (HiGHS's running time has no "
+                         "deterministic bound); use solver=None or 'label-bb', or time_limit")
+    return int(work_limit)
 
 
 def states_to_cells(mdp: GridMDP, states: np.ndarray) -> np.ndarray:
@@ -531,7 +532,7 @@ def _build_trajectory_milp(mdp: GridMDP, q: np.ndarray, nodes: np.ndarray) -> _T
                            e_time, e_src, e_dst, scale)
 
 
-def _run_highs(model: _TrajectoryMilp, options: dict) -> "object":
+def _run_highs(model: _TrajectoryMilp, options: dict) -> object:
     with warnings.catch_warnings():  # scipy warns that these HiGHS options are passed verbatim
         warnings.filterwarnings("ignore", message="Unrecognized options", category=RuntimeWarning)
         return milp(model.cost, integrality=model.integrality, bounds=model.bounds,

@@ -15,11 +15,11 @@ from ird_core import experiments as ex
 ROOT = Path(__file__).resolve().parents[1]
 
 TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4,
-            num_proxy_samples=20, factorial_samples=16, traj_time_limit=5.0, sample_z_sampler=None,
+            num_proxy_samples=20, factorial_samples=16, traj_work_limit=2_000_000, sample_z_sampler=None,
             maxent_z_sampler=None)
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
              "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--num-proxy-samples", "20",
-             "--factorial-samples", "16", "--traj-time-limit", "5"]
+             "--factorial-samples", "16", "--traj-work-limit", "2000000"]
 
 
 def _script():
@@ -359,7 +359,7 @@ def test_sampler_settings_follow_the_weight_space_dimension():
             2, 10, 1, 4, small_dim=small_dim, small=small)))
         post = ex._posterior(spec, ex.trial_instance(spec), "sample_z")
         assert (post.kernel, post.num_chains) == (kernel, chains)
-    # the paper-scale defaults: Sample-Z's small weight spaces elliptical, 50-d HMC; MaxEnt-Z HMC
+    # the paper-scale defaults: Sample-Z's small weight spaces independence + slice, 50-d HMC; MaxEnt-Z HMC
     default = ex.TrialSpec("side_effects", 0)
     assert (default.sampler("sample_z").for_dim(4).kernel, default.sampler("sample_z").for_dim(50).kernel,
-            default.sampler("maxent_z").for_dim(4).kernel) == ("elliptical", "hmc", "hmc")
+            default.sampler("maxent_z").for_dim(4).kernel) == ("independence_elliptical", "hmc", "hmc")

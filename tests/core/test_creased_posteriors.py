@@ -54,8 +54,9 @@ def test_estimated_preconditioner_carries_the_pooled_mean() -> None:
     assert np.array_equal(mcmc.Preconditioner.identity(3).centre, np.zeros(3))
 
 
-def test_elliptical_posterior_matches_quadrature_in_2d() -> None:
-    # The sampler's Sample-Z posterior, drawn with the gradient-free kernel.
+@pytest.mark.parametrize("kernel", ["elliptical", "independence_elliptical"])
+def test_elliptical_posterior_matches_quadrature_in_2d(kernel: str) -> None:
+    # The sampler's Sample-Z posterior, drawn with a gradient-free kernel.
     rng = np.random.default_rng(11)
     mdp = GridMDP(rng.normal(size=(2, 3, 2)), (0, 1), 3)
     proxy, samples = np.array([0.8, -0.5]), rng.normal(size=(20, 2))
@@ -63,8 +64,8 @@ def test_elliptical_posterior_matches_quadrature_in_2d() -> None:
     want_mean, want_cov = quadrature_moments(model.log_density)
     chains, per_chain = 16, 125
     post = I.sample_posterior(proxy, mdp, 10.0, "sample_z", chains * per_chain, seed=1, proxy_samples=samples,
-                              num_chains=chains, kernel="elliptical")
-    assert post.converged and post.kernel == "elliptical"
+                              num_chains=chains, kernel=kernel)
+    assert post.converged and post.kernel == kernel
     draws = post.samples.reshape(per_chain, chains, 2).transpose(1, 0, 2)
     ess = mcmc.effective_sample_size(draws)
     sd = np.sqrt(np.diag(want_cov))

@@ -189,8 +189,10 @@ def test_kernels_sample_a_correlated_gaussian(kernel: str) -> None:
     # Variance error: sd of a variance estimate is ~ var * sqrt(2 / ESS).
     assert np.all(np.abs(flat.var(axis=0) - sd**2) <= 4 * sd**2 * np.sqrt(2 / ess))
     assert mcmc.rank_normalized_r_hat(draws).max() < 1.05
-    target = mcmc.TARGET_ACCEPT[kernel]
-    assert abs(result.acceptance_rate.mean() - target) < 0.15
+    if kernel.startswith("independence"):  # no step to tune: the fitted t proposal itself is accepted often
+        assert result.acceptance_rate.mean() > 0.5
+    else:
+        assert abs(result.acceptance_rate.mean() - mcmc.TARGET_ACCEPT[kernel]) < 0.15
 
 
 def test_sampler_is_deterministic_per_seed() -> None:
@@ -269,6 +271,9 @@ def test_one_kernel_step_leaves_the_target_invariant(kernel: str) -> None:
     if kernel == "elliptical":  # never rejects; one call per shrink of its bracket
         assert info.is_accepted.all() and not np.any(np.all(state.position == start, axis=1))
         assert 1 <= info.num_evaluations <= mcmc_kernels.ELLIPTICAL_MAX_SHRINKS
+    elif kernel == "independence_elliptical":  # one independence call, then the slice's shrinks
+        assert 0.05 < info.is_accepted.mean() < 0.95 and not np.any(np.all(state.position == start, axis=1))
+        assert 2 <= info.num_evaluations <= 1 + mcmc_kernels.ELLIPTICAL_MAX_SHRINKS
     else:
         assert 0.05 < info.is_accepted.mean() < 0.95  # the step moves the chains
         assert info.num_evaluations == (3 if kernel == "hmc" else 1)

@@ -144,3 +144,25 @@ def test_bad_criteria_name_the_field(kwargs: dict, field: str) -> None:
 def test_until_converged_must_be_a_run_until(world: tuple) -> None:
     with pytest.raises(ValueError, match="^until_converged"):
         _sample(world, 0, until_converged=1.05)
+
+
+def test_a_hopeless_run_gives_up_at_its_first_check_past_give_up_after(world: tuple, monkeypatch) -> None:
+    from ird_core import sampler
+
+    monkeypatch.setattr(sampler, "GIVE_UP_R_HAT", 1.0)  # every unconverged check is "hopeless"
+    rule = RunUntil(r_hat=1.05, min_ess=400.0, give_up_after=100)
+    post = _sample(world, SEED_UNMIXED, until_converged=rule)
+    # The first check (120 iterations) is past 100 and not converged: stop there, not at the cap.
+    assert post.stop_reason == "futile" and post.iterations == 120 and not post.converged
+    assert "given up (R-hat above 1)" in post.diagnosis()
+    # Past the first check only: with give_up_after beyond it, the run is extended as usual.
+    later = _sample(world, SEED_UNMIXED, until_converged=RunUntil(r_hat=1.05, min_ess=400.0, give_up_after=121))
+    assert later.iterations > 120
+    # Convergence is tested first: a run that passes at a check never gives up there.
+    mixed = _sample(world, SEED_MIXED, until_converged=RunUntil(give_up_after=1))
+    assert mixed.stop_reason == "converged" and mixed.iterations == 120
+
+
+def test_give_up_after_is_validated() -> None:
+    with pytest.raises(ValueError, match="give_up_after"):
+        RunUntil(give_up_after=-1)
