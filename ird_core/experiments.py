@@ -121,11 +121,14 @@ class SamplerSettings:
 
     The defaults, measured on Sample-Z at beta 50 (15x15, T = 30, 100 proxies):
 
-    - d <= 10 (side_effects, reward_hacking): 8 chains of ``independence_elliptical`` (a
-      t-proposal jump around the fitted Gaussian, then a slice move) converged 20 of 20 runs
-      (seeds 0-9 of each) at 1.9-3.6 s for most and 18-21 s for the two slowest. The
-      elliptical kernel alone converged 14 of 16 at twice the CPU of independence steps alone,
-      which converged 13 of 16 (their failures: chains stuck where the t proposal is thin).
+    - d <= 10 (side_effects, reward_hacking): 8 chains, 200 warm-up iterations, up to 2000, of
+      ``independence_elliptical`` (a t-proposal jump around the fitted Gaussian, then a slice
+      move). On the experiment's first 40 posteriors per condition it converged 39 and 40 in
+      124 and 149 s in all (the default run's timings); the elliptical kernel alone at the same
+      settings 39 and 40 in 136 and 179 s (two processes, as in the run), with three runs at the
+      cap instead of one (``bench_inference.py --levers``
+      on seeds 0-5: both 12 of 12, elliptical 1.4x the ESS per second). Most of the gain over
+      the earlier 100 warm-up iterations and cap 600 (93 and 92 of 100) is the longer run.
     - d = 50: HMC (4 chains). In latent_raw no sampler tried converges within any affordable
       budget (README, Results), so runs still above R-hat 1.4 after 50 iterations give up.
     """
@@ -204,6 +207,9 @@ class TrialSpec:
         for method in self.z_methods:
             if method not in Z_METHODS:
                 raise ValueError(f"z_methods must be drawn from {Z_METHODS}, got {method!r}")
+        limit = self.traj_work_limit
+        if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+            raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
 
     def sampler(self, method: str) -> SamplerSettings:
         """``method``'s sampler settings: its own field if set, else the shared ones."""

@@ -71,20 +71,23 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
         print(f"{n:>6} {np.sqrt(np.mean((values - reference) ** 2)):>17.3f} {reference.std():>18.3f}")
 
 
-#: The levers measured by ``--levers`` (Sample-Z at the experiments' beta in 50-d). Each is
+#: The levers measured by ``--levers`` (Sample-Z at the experiments' beta). Each is
 #: ``(label, method, kernel, num_chains, newton_start_only)``; every run uses the experiments'
-#: default sampler settings of its method (``ird_core.experiments.SamplerSettings``: run until
-#: R-hat <= 1.05 and ESS >= 32, or the method's iteration cap) with the lever's chain count.
+#: default sampler settings of its method for the condition's dimension
+#: (``ird_core.experiments.SamplerSettings.for_dim``: run until R-hat <= 1.05 and ESS >= 32,
+#: or the iteration cap; warm-up and cap of that dimension) with the lever's kernel and chain
+#: count, and without the give-up rule (the levers compare kernels, not stopping rules).
 LEVERS = (
     ("hmc, Newton start (before)", "sample_z", "hmc", 4, True),
     ("hmc, mode + profile start", "sample_z", "hmc", 4, False),
     ("hmc, 16 chains", "sample_z", "hmc", 16, False),
-    ("elliptical slice", "sample_z", "elliptical", 4, False),
+    ("elliptical slice", "sample_z", "elliptical", 8, False),
+    ("independence + slice", "sample_z", "independence_elliptical", 8, False),
     ("hmc, MaxEnt-Z", "maxent_z", "hmc", 4, False),
 )
 
 
-def levers(conditions: list[str], seeds: int, beta: float, samples: int) -> None:
+def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "list[str] | None" = None) -> None:
     """Per condition and lever: converged runs (R-hat <= 1.1), median R-hat, mean CPU seconds,
     mean bulk ESS and ESS per CPU second, with the ratio to the first lever of the same method."""
     import math
@@ -99,12 +102,14 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int) -> None
     for condition in conditions:
         first: dict[str, float] = {}
         for label, method, kernel, chains, newton_only in LEVERS:
+            if only and not any(word in label for word in only):
+                continue
             rows = []
             for seed in range(seeds):
                 inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
                 obs = lavaland.proxy_observations(inst, 100 if method == "sample_z" else None, seed + 100, 1.0)
-                settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method),
-                                               num_chains=chains)
+                settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method).for_dim(
+                    obs[0].dim), num_chains=chains, kernel=kernel, give_up_after=0)
                 stall = math.inf if newton_only else laplace._NEWTON_STALL
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
@@ -138,9 +143,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="compare the sampler levers at the experiments' settings (beta 50, 64 samples) on "
                              "these conditions (default latent_raw side_effects) and exit")
     parser.add_argument("--lever-seeds", type=int, default=3)
+    parser.add_argument("--lever-labels", nargs="+", default=None, metavar="WORDS",
+                        help="only the levers whose label contains one of these (e.g. 'slice' 'MaxEnt')")
     args = parser.parse_args(argv)
     if args.levers is not None:
-        levers(args.levers or ["latent_raw", "side_effects"], args.lever_seeds, 50.0, 64)
+        levers(args.levers or ["latent_raw", "side_effects"], args.lever_seeds, 50.0, 64, args.lever_labels)
         return 0
 
     instance = lavaland.make_instance("latent_raw", args.seed, size=args.size, horizon=args.horizon)

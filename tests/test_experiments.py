@@ -302,6 +302,14 @@ def test_per_method_sampler_settings():
         mod.spec_settings(bad)
     with pytest.raises(ValueError, match="num_chains"):
         ex.SamplerSettings(num_chains=0, warmup=1, thin=1, max_leapfrog=1)
+    for bad_limit in (0, 2.5, True, None):
+        with pytest.raises(ValueError, match="traj_work_limit"):
+            ex.TrialSpec("side_effects", 0, traj_work_limit=bad_limit)
+    with pytest.raises(ValueError, match="give_up_after"):
+        ex.SamplerSettings(num_chains=2, warmup=1, thin=1, max_leapfrog=1, give_up_after=-1)
+    # give_up_after reaches the sampler's stopping rule (0: never give up)
+    assert ex.SamplerSettings(2, 1, 1, 1, max_iterations=9, give_up_after=5).run_until().give_up_after == 5
+    assert ex.SamplerSettings(2, 1, 1, 1, max_iterations=9).run_until().give_up_after == 0
 
 
 @pytest.mark.timeout(300)
