@@ -117,7 +117,8 @@ class SamplerSettings:
     ``kernel``: one of ``mcmc.KERNELS``. ``small``, if set, replaces these settings for weight
     spaces of at most ``small_dim`` dimensions (:meth:`for_dim`). ``give_up_after``: 0, or stop
     a run whose split R-hat is still above ``inference.GIVE_UP_R_HAT`` after that many
-    iterations (``inference.RunUntil.give_up_after``).
+    iterations (``inference.RunUntil.give_up_after``). ``warmup_max_leapfrog``,
+    ``trajectory_length``: the sampler's HMC options of those names (0: its defaults).
 
     The defaults, measured on Sample-Z at beta 50 (15x15, T = 30, 100 proxies):
 
@@ -142,14 +143,18 @@ class SamplerSettings:
     small_dim: int = 0
     small: "SamplerSettings | None" = None
     give_up_after: int = 0
+    warmup_max_leapfrog: int = 0  # 0: the sampler's default
+    trajectory_length: float = 0.0  # 0: the sampler's default
 
     def __post_init__(self) -> None:
         for name in ("num_chains", "thin", "max_leapfrog"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
-        for name in ("warmup", "max_iterations", "small_dim", "give_up_after"):
+        for name in ("warmup", "max_iterations", "small_dim", "give_up_after", "warmup_max_leapfrog"):
             if int(getattr(self, name)) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not (math.isfinite(self.trajectory_length) and self.trajectory_length >= 0):
+            raise ValueError(f"trajectory_length must be a finite number >= 0, got {self.trajectory_length!r}")
         if self.kernel not in mcmc.KERNELS:
             raise ValueError(f"kernel must be one of {mcmc.KERNELS}, got {self.kernel!r}")
 
@@ -282,7 +287,8 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) ->
             observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
             num_chains=settings.num_chains, warmup=settings.warmup, thin=settings.thin,
             max_leapfrog=settings.max_leapfrog, until_converged=settings.run_until(),
-            kernel=settings.kernel)
+            kernel=settings.kernel, warmup_max_leapfrog=settings.warmup_max_leapfrog or None,
+            trajectory_length=settings.trajectory_length or None)
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:

@@ -52,7 +52,9 @@ benchmark (``scripts/bench_inference.py``):
    chains need far longer warm-ups to get there. R-hat is computed on post-warm-up draws only,
    rank-normalised and folded, so chains that disagree in location or in scale are both caught.
 3. HMC (``kernel="hmc"``; ``"mala"``, ``"rwm"`` and the gradient-free ``"elliptical"`` slice
-   sampler around the adapted Gaussian are available) with a dense metric: a shared
+   sampler, ``"independence"`` Metropolis with a Student-t proposal and
+   ``"independence_elliptical"`` (one of each per iteration), all three around the adapted
+   Gaussian, are available) with a dense metric: a shared
    step size adapted by dual averaging towards acceptance 0.8 (chain-averaged acceptance
    probability), trajectories of 1.5 preconditioned units (at most ``DEFAULT_MAX_LEAPFROG``
    leapfrog steps, per-chain step jitter +-10%), and Stan-style windows that re-estimate the

@@ -321,6 +321,7 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
                            thin: "int | None" = None, kernel: str = DEFAULT_KERNEL,
                            num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES, init: str = "laplace",
                            init_scale: float = DEFAULT_INIT_SCALE, max_leapfrog: "int | None" = None,
+                           trajectory_length: "float | None" = None, warmup_max_leapfrog: "int | None" = None,
                            initial: "Posterior | None" = None,
                            until_converged: "RunUntil | None" = None,
                            progress: "ProgressFn | None" = None) -> Posterior:
@@ -345,13 +346,20 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
             smallest thinning giving ``DEFAULT_MIN_ITERATIONS[method]`` iterations per chain;
             with ``initial``, ``DEFAULT_WARM_MIN_ITERATIONS[method]`` iterations of which
             ``ceil(num_samples / num_chains)`` evenly spaced ones are kept (``thin`` 1 recorded).
-        kernel: ``"hmc"`` (default), ``"mala"``, ``"rwm"`` or ``"elliptical"`` (gradient-free
-            slice moves around the adapted Gaussian; see ``ird_core.mcmc_kernels``).
+        kernel: ``"hmc"`` (default), ``"mala"``, ``"rwm"``, or a gradient-free kernel around the
+            adapted Gaussian: ``"elliptical"`` (slice moves), ``"independence"`` (Student-t
+            proposals) or ``"independence_elliptical"`` (both); see ``ird_core.mcmc_kernels``.
         num_proxy_samples: ``N`` for Sample-Z when the proxy samples are drawn here.
         init: ``"laplace"`` (chains start at ``mode + init_scale * L z``) or ``"prior"``;
             ignored with ``initial``.
         init_scale: overdispersion of the Laplace start, ``> 0``.
         max_leapfrog: HMC leapfrog cap (default per method, ``DEFAULT_MAX_LEAPFROG``).
+        trajectory_length: HMC integration time in preconditioned units, ``> 0`` (default
+            ``DEFAULT_TRAJECTORY_LENGTH``).
+        warmup_max_leapfrog: leapfrog cap before the warm-up's final buffer, ``>= 1`` (default
+            ``DEFAULT_WARMUP_MAX_LEAPFROG``; short trajectories are cheap while the chains
+            converge, but on a posterior with steep walls they explore too little to learn the
+            metric: set it to ``max_leapfrog`` there).
         initial: a previous ``Posterior`` in the same weight space to warm start from (module
             docstring): no Laplace step, chains start at its draws, its metric is re-adapted.
         until_converged: a ``RunUntil``: extend the chains until R-hat and ESS pass or a bound
@@ -363,8 +371,9 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
     posterior = _sample(observations, beta, method, num_samples, seed, prior_sigma, proxy_samples,
                         num_chains=num_chains, warmup=warmup, thin=thin, kernel=kernel,
                         num_proxy_samples=num_proxy_samples, init=init, init_scale=init_scale,
-                        max_leapfrog=max_leapfrog, initial=initial, until_converged=until_converged,
-                        progress=progress)
+                        max_leapfrog=max_leapfrog, trajectory_length=trajectory_length,
+                        warmup_max_leapfrog=warmup_max_leapfrog, initial=initial,
+                        until_converged=until_converged, progress=progress)
     _warn_unconverged(posterior, "sample_joint_posterior")
     return posterior
 
@@ -374,6 +383,7 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
             num_chains: int = DEFAULT_NUM_CHAINS, warmup: "int | None" = None, thin: "int | None" = None,
             kernel: str = DEFAULT_KERNEL, num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES,
             init: str = "laplace", init_scale: float = DEFAULT_INIT_SCALE, max_leapfrog: "int | None" = None,
+            trajectory_length: "float | None" = None, warmup_max_leapfrog: "int | None" = None,
             initial: "Posterior | None" = None, until_converged: "RunUntil | None" = None,
             progress: "ProgressFn | None" = None) -> Posterior:
     """``sample_joint_posterior`` without the convergence warning (its callers emit it)."""
@@ -398,6 +408,10 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
     evenly = initial is not None and thin == 1 and iterations > per_chain
     max_leapfrog = DEFAULT_MAX_LEAPFROG[method] if max_leapfrog is None else \
         check_int("max_leapfrog", max_leapfrog, 1)
+    trajectory_length = DEFAULT_TRAJECTORY_LENGTH if trajectory_length is None else \
+        check_real("trajectory_length", trajectory_length, positive=True)
+    warmup_max_leapfrog = DEFAULT_WARMUP_MAX_LEAPFROG if warmup_max_leapfrog is None else \
+        check_int("warmup_max_leapfrog", warmup_max_leapfrog, 1)
     if init not in ("laplace", "prior"):
         raise ValueError(f"init: expected 'laplace' or 'prior', got {init!r}")
     init_scale = check_real("init_scale", init_scale, positive=True)
@@ -431,8 +445,8 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
 
     chains = dict(kernel=kernel, warmup=warmup, seed=chain_seed, preconditioner="dense",
                   initial_preconditioner=mcmc.Preconditioner(metric, mean=centre),
-                  trajectory_length=DEFAULT_TRAJECTORY_LENGTH, max_leapfrog=max_leapfrog,
-                  warmup_max_leapfrog=DEFAULT_WARMUP_MAX_LEAPFROG, progress=progress)
+                  trajectory_length=trajectory_length, max_leapfrog=max_leapfrog,
+                  warmup_max_leapfrog=warmup_max_leapfrog, progress=progress)
     if until_converged is None:
         result = mcmc.sample_chains(target, starts, iterations, thin=thin, **chains)
         kept = np.round(np.linspace(0, iterations - 1, per_chain)).astype(np.int64)
@@ -547,7 +561,8 @@ def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
         proxy_weights, train_mdp, proxy_features, proxy_sample_features: the
             ``ProxyObservation`` (``ird_core.evidence``); the rest as ``sample_joint_posterior``
             (``num_chains``, ``warmup``, ``thin``, ``kernel``, ``num_proxy_samples``, ``init``,
-            ``init_scale``, ``max_leapfrog``, ``initial``, ``until_converged``, ``progress``).
+            ``init_scale``, ``max_leapfrog``, ``trajectory_length``, ``warmup_max_leapfrog``,
+            ``initial``, ``until_converged``, ``progress``).
     Returns:
         The ``Posterior``. Emits a ``RuntimeWarning`` if it is not ``converged``.
     """

@@ -496,6 +496,7 @@ def _quick_samplers(args) -> dict:
 def z_samplers(args) -> dict:
     """``{"<method>_sampler": SamplerSettings}`` from --z-sampler (ValueError naming the bad item)."""
     names = [f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("int", int)]
+    reals = [f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("float", float)]
     out = _quick_samplers(args)
     base = ex.TrialSpec("side_effects", 0, **{f: getattr(args, f) for f in SPEC_FLAGS}, **out)
     for method, *items in args.z_sampler:
@@ -504,8 +505,15 @@ def z_samplers(args) -> dict:
         values = {}
         for item in items:
             key, _, value = item.partition("=")
+            if key in reals:
+                try:
+                    values[key] = float(value)
+                except ValueError:
+                    raise ValueError(f"--z-sampler {method}: expected {key}=NUMBER, got {item!r}") from None
+                continue
             if key not in names or not value.lstrip("-").isdigit():
-                raise ValueError(f"--z-sampler {method}: expected FIELD=INTEGER with FIELD in {names}, got {item!r}")
+                raise ValueError(f"--z-sampler {method}: expected FIELD=INTEGER with FIELD in {names} "
+                                 f"(or FIELD=NUMBER with FIELD in {reals}), got {item!r}")
             values[key] = int(value)
         out[f"{method}_sampler"] = dataclasses.replace(base.sampler(method), **values)
     return out

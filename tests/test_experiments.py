@@ -296,6 +296,15 @@ def test_per_method_sampler_settings():
     inst = ex.trial_instance(own)
     sz, mz = ex._posterior(own, inst, "sample_z"), ex._posterior(own, inst, "maxent_z")
     assert (sz.num_chains, sz.warmup, mz.num_chains, mz.warmup) == (3, 12, TINY["num_chains"], TINY["warmup"])
+    long = mod.build_parser().parse_args(["--z-sampler", "sample_z", "warmup_max_leapfrog=64", "trajectory_length=3"])
+    mod.resolve_spec_flags(long)
+    recipe = mod.spec_settings(long)["sample_z_sampler"]
+    assert (recipe.warmup_max_leapfrog, recipe.trajectory_length) == (64, 3.0)
+    for item in ("trajectory_length=long", "trajectory_length=-1"):
+        wrong = mod.build_parser().parse_args(["--z-sampler", "sample_z", item])
+        mod.resolve_spec_flags(wrong)
+        with pytest.raises(ValueError, match="trajectory_length"):
+            mod.spec_settings(wrong)
     bad = mod.build_parser().parse_args(["--z-sampler", "sample_z", "chains=8"])
     mod.resolve_spec_flags(bad)
     with pytest.raises(ValueError, match="FIELD=INTEGER"):
@@ -371,3 +380,23 @@ def test_sampler_settings_follow_the_weight_space_dimension():
     default = ex.TrialSpec("side_effects", 0)
     assert (default.sampler("sample_z").for_dim(4).kernel, default.sampler("sample_z").for_dim(50).kernel,
             default.sampler("maxent_z").for_dim(4).kernel) == ("independence_elliptical", "hmc", "hmc")
+
+
+def test_trajectory_settings_reach_the_sampler(monkeypatch):
+    seen = []
+
+    def capture(*args, **kwargs):
+        seen.append(kwargs)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(ex.inference, "sample_joint_posterior", capture)
+    for settings, want in ((ex.SamplerSettings(4, 10, 1, 8), (None, None)),
+                           (ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=64, trajectory_length=3.0), (64, 3.0))):
+        spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=settings))
+        with pytest.raises(RuntimeError, match="captured"):
+            ex._posterior(spec, ex.trial_instance(spec), "sample_z")
+        assert (seen[-1]["warmup_max_leapfrog"], seen[-1]["trajectory_length"]) == want
+    with pytest.raises(ValueError, match="trajectory_length"):
+        ex.SamplerSettings(4, 10, 1, 8, trajectory_length=float("inf"))
+    with pytest.raises(ValueError, match="warmup_max_leapfrog"):
+        ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=-1)

@@ -184,6 +184,9 @@ def test_default_proxy_samples_match_lavaland() -> None:
     ({"kernel": "gibbs"}, "kernel"),
     ({"init": "zeros"}, "init"),
     ({"num_proxy_samples": 0}, "num_proxy_samples"),
+    ({"trajectory_length": 0.0}, "trajectory_length"),
+    ({"trajectory_length": float("nan")}, "trajectory_length"),
+    ({"warmup_max_leapfrog": 0}, "warmup_max_leapfrog"),
 ])
 def test_bad_arguments_name_the_field(kwargs: dict, field: str) -> None:
     args = {"proxy_weights": np.ones(3), "train_mdp": tiny_mdp(0), "beta": 1.0, "method": "sample_z",
@@ -286,3 +289,18 @@ def test_converged_run_does_not_warn() -> None:
         warnings.simplefilter("error")
         post = I.sample_posterior(np.array([0.5, -0.2, 0.1]), tiny_mdp(16), 1.0, "maxent_z", 400, seed=0)
     assert post.converged
+
+
+def test_trajectory_options_reach_the_chains() -> None:
+    # Same seed: the defaults spelled out give the same run; a longer trajectory costs more
+    # leapfrog steps (batched calls), one-step warm-up trajectories fewer, and both change the draws.
+    args = dict(proxy_weights=np.array([0.5, -1.0, 0.3]), train_mdp=tiny_mdp(0), beta=2.0, method="maxent_z",
+                num_samples=16, seed=3, num_chains=4, warmup=40, max_leapfrog=32)
+    base = I.sample_posterior(**args)
+    same = I.sample_posterior(**args, trajectory_length=I.DEFAULT_TRAJECTORY_LENGTH,
+                              warmup_max_leapfrog=I.DEFAULT_WARMUP_MAX_LEAPFROG)
+    assert np.array_equal(base.samples, same.samples) and base.num_evaluations == same.num_evaluations
+    longer = I.sample_posterior(**args, trajectory_length=3.0)
+    capped = I.sample_posterior(**args, warmup_max_leapfrog=1)
+    assert longer.num_evaluations > base.num_evaluations > capped.num_evaluations
+    assert not np.array_equal(longer.samples, base.samples) and not np.array_equal(capped.samples, base.samples)
