@@ -20,10 +20,11 @@ One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
    - the factorial: ``per_step`` and ``trajectory`` x ``initial_state``, ``training_features``,
      ``log_z``, BOTH granularities on the same first ``factorial_samples`` posterior samples
      (draw-major pooled, so spread over the chains), so the granularity effect is not confounded
-     with the number of samples. ``trajectory`` is the exact label search/MILP of
-     ``ird_core.planning`` with a per-plan time limit; if the solver does not prove optimality in
-     time, the trial falls back to the ``per_step`` plan of the same samples and baseline and is
-     flagged (``fallback``), counted in the aggregated table.
+     with the number of samples. ``trajectory`` is the exact label search of
+     ``ird_core.planning`` with a per-plan work limit (``traj_work_limit`` label expansions, not
+     seconds, so a trial is the same on any machine); if the solver does not prove optimality
+     within it, the trial falls back to the ``per_step`` plan of the same samples and baseline
+     and is flagged (``fallback``), counted in the aggregated table.
 4. Outcomes on the executed path (Rob executes plans exactly, so the executed path is the
    plan's cells): touched lava, reached a target, true return (``ird_core.lavaland``).
 
@@ -169,6 +170,13 @@ class SamplerSettings:
         return inference.RunUntil(r_hat=RUN_UNTIL_R_HAT, min_ess=0.0, ess_per_sample=0.5,
                                   max_iterations=self.max_iterations, give_up_after=self.give_up_after)
 
+    def options(self) -> dict:
+        """These settings as ``inference.sample_joint_posterior``'s keyword arguments."""
+        return dict(num_chains=self.num_chains, warmup=self.warmup, thin=self.thin, max_leapfrog=self.max_leapfrog,
+                    until_converged=self.run_until(), kernel=self.kernel,
+                    warmup_max_leapfrog=self.warmup_max_leapfrog or None,
+                    trajectory_length=self.trajectory_length or None)
+
 
 @dataclass(frozen=True)
 class TrialSpec:
@@ -285,10 +293,7 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) ->
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return inference.sample_joint_posterior(
             observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
-            num_chains=settings.num_chains, warmup=settings.warmup, thin=settings.thin,
-            max_leapfrog=settings.max_leapfrog, until_converged=settings.run_until(),
-            kernel=settings.kernel, warmup_max_leapfrog=settings.warmup_max_leapfrog or None,
-            trajectory_length=settings.trajectory_length or None)
+            **settings.options())
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:

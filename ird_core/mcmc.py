@@ -1,6 +1,7 @@
 """Batched Markov chain Monte Carlo: many chains advanced together as one batch.
 
-The kernels (RWM, MALA, HMC, elliptical slice) are ``init``/``step`` pairs in ``ird_core.mcmc_kernels``, chosen by
+The kernels (RWM, MALA, HMC, elliptical slice, independence MH) are ``init``/``step`` pairs in
+``ird_core.mcmc_kernels``, chosen by
 name from ``KERNEL_TABLE``; this module adapts their parameters in a warm-up and runs them.
 Every step makes ONE batched ``log_density`` call on all ``C`` chains (``L`` calls for HMC with
 ``L`` leapfrog steps); positions are ``(C, d)`` arrays throughout.

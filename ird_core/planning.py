@@ -371,7 +371,7 @@ def plan_path(
                              solver=solver, time_limit=time_limit, work_limit=work_limit)
     assert w is not None
     check_magnitude("features", mdp.features, MAX_ABS_FEATURE)
-    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit, check_work_limit(work_limit, solver))
+    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit, work_limit)
     if not np.isfinite(plan.objective):  # unreachable within the checked ranges; never a success
         raise RuntimeError(f"objective: {plan.objective!r} is not finite; no plan is returned")
     return plan

@@ -174,7 +174,8 @@ class Posterior:
         ess_min: min over coordinates of the bulk effective sample size of those iterations
             (NaN if fewer than 8).
         num_chains, warmup, thin: the sampler settings; ``kernel``: one of ``mcmc.KERNELS``.
-        step_size: the frozen step size (in preconditioned units; 1.0 and unused by the elliptical kernel).
+        step_size: the frozen step size (in preconditioned units; 1.0 and unused by the kernels
+            without a step: elliptical, independence).
         r_hat: ``(d,)`` and ess: ``(d,)`` per coordinate.
         mode: ``(d,)`` the MAP of the Laplace approximation (NaN if none was computed: warm start,
             ``init="prior"`` still computes it for the metric).

@@ -72,18 +72,21 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 
 
 #: The levers measured by ``--levers`` (Sample-Z at the experiments' beta). Each is
-#: ``(label, method, kernel, num_chains, newton_start_only)``; every run uses the experiments'
-#: default sampler settings of its method for the condition's dimension
+#: ``(label, method, overrides, newton_start_only)``; every run uses the experiments' default
+#: sampler settings of its method for the condition's dimension
 #: (``ird_core.experiments.SamplerSettings.for_dim``: run until R-hat <= 1.05 and ESS >= 32,
-#: or the iteration cap; warm-up and cap of that dimension) with the lever's kernel and chain
-#: count, and without the give-up rule (the levers compare kernels, not stopping rules).
+#: or the iteration cap), without the give-up rule (the levers compare samplers, not stopping
+#: rules), with the lever's ``overrides`` of those settings.
 LEVERS = (
-    ("hmc, Newton start (before)", "sample_z", "hmc", 4, True),
-    ("hmc, mode + profile start", "sample_z", "hmc", 4, False),
-    ("hmc, 16 chains", "sample_z", "hmc", 16, False),
-    ("elliptical slice", "sample_z", "elliptical", 8, False),
-    ("independence + slice", "sample_z", "independence_elliptical", 8, False),
-    ("hmc, MaxEnt-Z", "maxent_z", "hmc", 4, False),
+    ("hmc, Newton start (before)", "sample_z", dict(kernel="hmc", num_chains=4), True),
+    ("hmc, mode + profile start", "sample_z", dict(kernel="hmc", num_chains=4), False),
+    ("hmc, 16 chains", "sample_z", dict(kernel="hmc", num_chains=16), False),
+    ("hmc, long trajectories", "sample_z", dict(kernel="hmc", num_chains=8, warmup=600, max_leapfrog=128,
+                                                max_iterations=1000, warmup_max_leapfrog=64,
+                                                trajectory_length=3.0), False),
+    ("elliptical slice", "sample_z", dict(kernel="elliptical", num_chains=8), False),
+    ("independence + slice", "sample_z", dict(kernel="independence_elliptical", num_chains=8), False),
+    ("hmc, MaxEnt-Z", "maxent_z", dict(kernel="hmc", num_chains=4), False),
 )
 
 
@@ -101,7 +104,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
           f"{'ESS/s':>7} {'vs first':>8}")
     for condition in conditions:
         first: dict[str, float] = {}
-        for label, method, kernel, chains, newton_only in LEVERS:
+        for label, method, overrides, newton_only in LEVERS:
             if only and not any(word in label for word in only):
                 continue
             rows = []
@@ -109,15 +112,12 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
                 inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
                 obs = lavaland.proxy_observations(inst, 100 if method == "sample_z" else None, seed + 100, 1.0)
                 settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method).for_dim(
-                    obs[0].dim), num_chains=chains, kernel=kernel, give_up_after=0)
+                    obs[0].dim), give_up_after=0, **overrides)
                 stall = math.inf if newton_only else laplace._NEWTON_STALL
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
                     cpu = time.process_time()
-                    post = inference.sample_joint_posterior(
-                        obs, beta, method, samples, seed, num_chains=chains, warmup=settings.warmup,
-                        thin=settings.thin, max_leapfrog=settings.max_leapfrog, kernel=kernel,
-                        until_converged=settings.run_until())
+                    post = inference.sample_joint_posterior(obs, beta, method, samples, seed, **settings.options())
                     rows.append((post.r_hat_max, time.process_time() - cpu, post.ess_min))
             r_hat, cpu, ess = (np.array(v) for v in zip(*rows))
             rate = float(np.mean(ess) / np.mean(cpu))

@@ -11,8 +11,8 @@ condition, both Z-approximations and the full factorial. --quick: the small sett
 look (8x8, T = 12, 10-d, 64 samples from 4 chains, warm-up 50, thin 4, at most 16 leapfrog
 steps, 100 Sample-Z proxies, factorial on 10 samples; ird_core.experiments.QUICK); flags given
 with --quick override it. --z-sampler sample_z num_chains=8 warmup=200 gives one
-Z-approximation its own sampler settings (fields num_chains, warmup, thin, max_leapfrog; the
-others from the shared flags).
+Z-approximation its own sampler settings (the numeric fields of
+ird_core.experiments.SamplerSettings; the others keep that method's defaults).
 
 Every condition x planner gets N seeded trials (trial i uses instance seed S + i, paired over
 conditions). One trial = one Lavaland instance: the literal plan, the oracle plan (optimal
@@ -81,6 +81,9 @@ FIGURE4 = (("literal", "Literal", "#c44e52"), ("ird_sample_z", Z_LABEL["sample_z
 # TrialSpec fields set by a flag of the same name (dashes for underscores); --quick's fields among them
 SPEC_FLAGS = ("size", "horizon", "obs_dim", "num_samples", "beta", "prior_sigma", "num_chains", "warmup",
               "thin", "max_leapfrog", "num_proxy_samples", "factorial_samples", "traj_work_limit")
+# --z-sampler's FIELD=VALUE fields: SamplerSettings' integer and real ones.
+Z_SAMPLER_INTS = tuple(f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("int", int))
+Z_SAMPLER_REALS = tuple(f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("float", float))
 
 
 # --------------------------------------------------------------------------- running
@@ -469,7 +472,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="label expansions per exact trajectory plan (deterministic; ~4e5 per second here)")
     p.add_argument("--z-sampler", nargs="+", action="append", default=[], metavar="ARG",
                    help="METHOD FIELD=VALUE ...: that Z-approximation's own sampler settings "
-                        f"(fields {', '.join(f.name for f in dataclasses.fields(ex.SamplerSettings))})")
+                        f"(fields {', '.join(Z_SAMPLER_INTS + Z_SAMPLER_REALS)})")
     return p
 
 
@@ -495,8 +498,7 @@ def _quick_samplers(args) -> dict:
 
 def z_samplers(args) -> dict:
     """``{"<method>_sampler": SamplerSettings}`` from --z-sampler (ValueError naming the bad item)."""
-    names = [f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("int", int)]
-    reals = [f.name for f in dataclasses.fields(ex.SamplerSettings) if f.type in ("float", float)]
+    names, reals = list(Z_SAMPLER_INTS), list(Z_SAMPLER_REALS)
     out = _quick_samplers(args)
     base = ex.TrialSpec("side_effects", 0, **{f: getattr(args, f) for f in SPEC_FLAGS}, **out)
     for method, *items in args.z_sampler:
