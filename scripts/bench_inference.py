@@ -76,8 +76,8 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 #: sampler settings of its method for the condition's dimension
 #: (``ird_core.experiments.SamplerSettings.for_dim``: run until R-hat <= 1.05 and ESS >= 32,
 #: or the iteration cap), without the give-up rule (the levers compare samplers, not stopping
-#: rules), with the lever's ``overrides`` of those settings; ``proxies`` in the overrides sets the
-#: number of Sample-Z proxies instead (default the experiments' 100).
+#: rules), with the lever's ``overrides`` of those settings; ``num_proxy_samples`` in the overrides
+#: replaces the experiments' ``TrialSpec.num_proxy_samples`` instead.
 LEVERS = (
     ("hmc, Newton start (before)", "sample_z", dict(kernel="hmc", num_chains=4), True),
     ("hmc, mode + profile start", "sample_z", dict(kernel="hmc", num_chains=4), False),
@@ -85,9 +85,9 @@ LEVERS = (
     ("hmc, long trajectories", "sample_z", dict(kernel="hmc", num_chains=8, warmup=600, max_leapfrog=128,
                                                 max_iterations=1000, warmup_max_leapfrog=64,
                                                 trajectory_length=3.0), False),
-    ("hmc, 1000 proxies", "sample_z", dict(kernel="hmc", num_chains=4, proxies=1000), False),
-    ("hmc, 1000 proxies, traj 2.5", "sample_z", dict(kernel="hmc", num_chains=4, proxies=1000, warmup=150,
-                                                      warmup_max_leapfrog=32, max_leapfrog=64,
+    ("hmc, 1000 proxies", "sample_z", dict(kernel="hmc", num_chains=4, num_proxy_samples=1000), False),
+    ("hmc, 1000 proxies, traj 2.5", "sample_z", dict(kernel="hmc", num_chains=4, num_proxy_samples=1000,
+                                                      warmup=150, warmup_max_leapfrog=32, max_leapfrog=64,
                                                       trajectory_length=2.5), False),
     ("elliptical slice", "sample_z", dict(kernel="elliptical", num_chains=8), False),
     ("independence + slice", "sample_z", dict(kernel="independence_elliptical", num_chains=8), False),
@@ -104,8 +104,8 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
 
     from ird_core import experiments, laplace
 
-    print(f"levers at beta {beta:g}, {samples} samples, 100 Sample-Z proxies unless the lever says otherwise, "
-          f"seeds 0-{seeds - 1}:")
+    print(f"levers at beta {beta:g}, {samples} samples, {experiments.TrialSpec.num_proxy_samples} Sample-Z "
+          f"proxies unless the lever says otherwise, seeds 0-{seeds - 1}:")
     print(f"{'condition':<18} {'lever':<28} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
           f"{'ESS/s':>7} {'vs first':>8}")
     for condition in conditions:
@@ -113,14 +113,14 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
         for label, method, overrides, newton_only in LEVERS:
             if only and not any(word in label for word in only):
                 continue
-            overrides = dict(overrides)
-            proxies = overrides.pop("proxies", 100)
             rows = []
             for seed in range(seeds):
+                spec = experiments.TrialSpec(condition, seed)
+                fields = dict(overrides)
+                proxies = fields.pop("num_proxy_samples", spec.num_proxy_samples)
                 inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
                 obs = lavaland.proxy_observations(inst, proxies if method == "sample_z" else None, seed + 100, 1.0)
-                settings = dataclasses.replace(experiments.TrialSpec(condition, seed).sampler(method).for_dim(
-                    obs[0].dim), give_up_after=0, **overrides)
+                settings = dataclasses.replace(spec.sampler(method).for_dim(obs[0].dim), give_up_after=0, **fields)
                 stall = math.inf if newton_only else laplace._NEWTON_STALL
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
