@@ -24,8 +24,8 @@ over time steps. :func:`plan_trajectory` solves it exactly:
    the start, conservation at each inner (time, state), visit counts
    ``n[c] = sum of edges into c``, and ``z <= q_i(s_0) + sum_c q_i(c) n[c]`` per kept
    sample; maximise ``z``. HiGHS runs at zero gap with 1e-9 feasibility tolerances on
-   rewards normalised to ``|q| <= 1``; a false "infeasible" (a HiGHS 1.12 presolve error;
-   the model always holds the incumbent) is retried without presolve.
+   rewards normalised to ``|q| <= 1``, HiGHS's presolve off (it gave wrong answers on these
+   models).
 
 Limits. ``time_limit`` is wall-clock seconds. ``work_limit`` counts label expansions: the child
 labels the label searches generate (every beam search and the exact search, before pruning),
@@ -69,8 +69,12 @@ from ird_core.trajectory_bounds import trajectory_value as _trajectory_value
 __all__ = ["OutOfTime", "check_work_limit", "plan_trajectory", "states_to_cells"]
 
 # HiGHS settings for the trajectory MILP: zero optimality gap, tight feasibility tolerances (the
-# problem is normalised so that per-cell rewards are at most 1 in magnitude).
+# problem is normalised so that per-cell rewards are at most 1 in magnitude), and no presolve:
+# HiGHS 1.12's presolve has answered these models with a false "infeasible" and with a wrong
+# "optimal" (a 1.40 path for a 3.22 optimum on a 2x2 map, T = 3; a hypothesis example in
+# tests/core/test_planning.py); without it both solve exactly.
 _HIGHS_OPTIONS = {
+    "presolve": False,
     "mip_rel_gap": 0.0,
     "mip_abs_gap": 0.0,
     "mip_feasibility_tolerance": 1e-9,
@@ -543,17 +547,11 @@ def _solve_trajectory_milp(mdp: GridMDP, model: _TrajectoryMilp, deadline: float
     """Solve the model with HiGHS; returns the path's ``(T + 1, 2)`` cells and the dual bound
     (an upper bound on the objective, in objective units).
 
-    The model always contains a feasible path, so an "infeasible" answer is a HiGHS presolve
-    error (HiGHS 1.12 makes it on some of these models): solve again without presolve.
-
     Raises:
         OutOfTime: HiGHS hit the time left before ``deadline``.
         RuntimeError: any other non-optimal HiGHS status.
     """
-    options = dict(_HIGHS_OPTIONS)
-    res = _run_highs(model, _with_time_left(options, deadline))
-    if res.status == 2:
-        res = _run_highs(model, _with_time_left(dict(options, presolve=False), deadline))
+    res = _run_highs(model, _with_time_left(dict(_HIGHS_OPTIONS), deadline))
     dual = res.mip_dual_bound if res.mip_dual_bound is not None else res.fun
     bound = math.inf if dual is None or not np.isfinite(dual) else -float(dual) * model.scale
     if res.status == 1:

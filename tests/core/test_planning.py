@@ -124,6 +124,14 @@ def test_property_trajectory_matches_brute_force(seed: int, integer: bool, dupli
         check_optimal(mdp, weights, "trajectory", "training_features", reference, plan)
 
 
+def test_milp_is_exact_where_highs_presolve_was_wrong() -> None:
+    """A hypothesis example (seed 135, integer) on which HiGHS 1.12 with presolve returned a
+    1.40 path as optimal; the optimum, by brute force, is 3.22."""
+    mdp, weights, reference = random_case(135, integer=True)
+    plan = P.plan_path(mdp, weights, "trajectory", "training_features", reference, solver="milp-highs")
+    check_optimal(mdp, weights, "trajectory", "training_features", reference, plan)
+
+
 @pytest.mark.parametrize("seed", range(12))
 def test_dominated_samples_are_dropped_without_changing_the_plan(seed: int) -> None:
     # A constant feature lets a sample's reward drop by 1 on every cell: the lowered copy
