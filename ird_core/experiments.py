@@ -121,21 +121,23 @@ class SamplerSettings:
     iterations (``inference.RunUntil.give_up_after``). ``warmup_max_leapfrog``,
     ``trajectory_length``: the sampler's HMC options of those names (0: its defaults).
 
-    The defaults, measured on Sample-Z at beta 50 (15x15, T = 30, 100 proxies):
+    The defaults, measured on Sample-Z at beta 50 (15x15, T = 30):
 
     - d <= 10 (side_effects, reward_hacking): 8 chains, 200 warm-up iterations, up to 2000, of
       ``independence_elliptical`` (a t-proposal jump around the fitted Gaussian, then a slice
-      move). On the experiment's first 40 posteriors per condition it converged 39 and 40 in
+      move). On the experiment's first 40 posteriors per condition at 100 proxies it converged
+      39 and 40 (at 1000 proxies, the first 20: 20 and 20) in
       124 and 149 s in all (the default run's timings); the elliptical kernel alone at the same
       settings 39 and 40 in 136 and 179 s (two processes, as in the run), with three runs at the
       cap instead of one (``bench_inference.py --levers``
       on seeds 0-5: both 12 of 12, elliptical 1.4x the ESS per second). Most of the gain over
       the earlier 100 warm-up iterations and cap 600 (93 and 92 of 100) is the longer run.
-    - d = 50: HMC (4 chains). In latent_raw at 100 proxies no sampler tried converges within any
-      affordable budget (README, Benchmarks), so runs still above R-hat 1.4 after 50 iterations
-      give up. At 1000 proxies (``num_proxy_samples``) it converges with 150 warm-up iterations
-      and trajectories of 2.5 units (96 of 100), at about 8x the cell's cost in the default run
-      (2474 against 300 CPU s).
+    - d = 50: HMC (4 chains), 150 warm-up iterations (at most 32 leapfrog steps each until the
+      final buffer), then trajectories of 2.5 preconditioned units of at most 64 steps, up to 300
+      iterations; runs still above R-hat 1.4 after 50 iterations give up. These settings
+      converge latent_raw at the experiments' 1000 proxies (96 of 100, 2474 CPU s for the cell);
+      at 100 proxies no sampler tried converges within any affordable budget (README,
+      Benchmarks), which is why the experiments use 1000.
     """
 
     num_chains: int
@@ -205,14 +207,14 @@ class TrialSpec:
     warmup: int = 50
     thin: int = 4
     max_leapfrog: int = 16
-    num_proxy_samples: int = 100
+    num_proxy_samples: int = inference.DEFAULT_NUM_PROXY_SAMPLES  # 1000: Sample-Z converges (see SamplerSettings)
     factorial_samples: int = 16
     traj_work_limit: int = 50_000
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
-        4, 100, 4, 32, 300, small_dim=10, give_up_after=50,
+        4, 150, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
         small=SamplerSettings(8, 200, 4, 32, 2000, kernel="independence_elliptical"))
     maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000)
 
