@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -122,6 +125,40 @@ def test_mixed_batch_falls_back_per_element_and_matches_one_at_a_time() -> None:
     assert np.allclose(M.expected_visitation(mdp, weights), visits, rtol=1e-10, atol=1e-12)
     single = np.concatenate([M.feature_expectations(mdp, w[None]) for w in weights])
     assert np.allclose(batched_phi, single, rtol=1e-12, atol=1e-12)
+
+
+def test_reused_work_arrays_carry_nothing_between_calls() -> None:
+    # The passes reuse per-thread work arrays: a batch whose flagged elements leave NaN and inf
+    # behind, then ordinary batches of the same shape, must give what fresh arrays give.
+    rng = np.random.default_rng(11)
+    mdp = random_mdp(rng, 7, 6, d=3, horizon=15)
+    wild = rng.normal(size=(8, 3)) * np.array([1.0, 500.0, 1.0, 1.0, 2000.0, 0.0, 1.0, 300.0])[:, None]
+    calm = rng.normal(size=(8, 3))
+    M._SCRATCH.__dict__.clear()
+    fresh = M.log_partition_and_feature_expectations(mdp, calm), M.log_partition(mdp, calm)
+    for _ in range(2):
+        M.log_partition_and_feature_expectations(mdp, wild)
+        M.log_partition(mdp, wild)
+        again = M.log_partition_and_feature_expectations(mdp, calm), M.log_partition(mdp, calm)
+        assert np.array_equal(again[0][0], fresh[0][0]) and np.array_equal(again[0][1], fresh[0][1])
+        assert np.array_equal(again[1], fresh[1])
+
+
+def test_threads_get_their_own_work_arrays() -> None:
+    # ROS executors may call the passes from several threads at once.
+    rng = np.random.default_rng(12)
+    mdp = random_mdp(rng, 9, 8, d=4, horizon=20)
+    batches = [rng.normal(size=(6, 4)) for _ in range(8)]
+    serial = [M.feature_expectations(mdp, w) for w in batches]
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads between numpy calls, inside the passes
+    try:
+        with ThreadPoolExecutor(max_workers=4) as pool:
+            for _ in range(5):
+                threaded = list(pool.map(lambda w: M.feature_expectations(mdp, w), batches))
+                assert all(np.array_equal(a, b) for a, b in zip(serial, threaded))
+    finally:
+        sys.setswitchinterval(interval)
 
 
 @pytest.mark.parametrize("seed", range(10))
