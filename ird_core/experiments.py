@@ -135,7 +135,7 @@ class SamplerSettings:
     - d = 50: HMC (4 chains), 150 warm-up iterations (at most 32 leapfrog steps each until the
       final buffer), then trajectories of 2.5 preconditioned units of at most 64 steps, up to 300
       iterations; runs still above R-hat 1.4 after 50 iterations give up. These settings
-      converge latent_raw at the experiments' 1000 proxies (96 of 100, 2474 CPU s for the cell);
+      converge latent_raw at the experiments' 1000 proxies (96 of 100, 2563 CPU s for the cell);
       at 100 proxies no sampler tried converges within any affordable budget (README,
       Benchmarks), which is why the experiments use 1000.
     """

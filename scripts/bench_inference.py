@@ -77,20 +77,26 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 #: (``ird_core.experiments.SamplerSettings.for_dim``: run until R-hat <= 1.05 and ESS >= 32,
 #: or the iteration cap), without the give-up rule (the levers compare samplers, not stopping
 #: rules), with the lever's ``overrides`` of those settings; ``num_proxy_samples`` in the overrides
-#: replaces the experiments' ``TrialSpec.num_proxy_samples`` instead.
+#: replaces the experiments' ``TrialSpec.num_proxy_samples`` instead, and ``before`` (see
+#: ``_D50_BEFORE``) starts from the settings the experiments used with 100 proxies.
+
+#: ``before=True`` in a lever's overrides: the experiments' settings before they moved to 1000
+#: proxies, i.e. 100 proxies and, in d = 50, these HMC settings (100 warm-up iterations, at most
+#: 32 leapfrog steps, the sampler's default trajectory length).
+_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0)
+_B = dict(before=True)
 LEVERS = (
-    ("hmc, Newton start (before)", "sample_z", dict(kernel="hmc", num_chains=4), True),
-    ("hmc, mode + profile start", "sample_z", dict(kernel="hmc", num_chains=4), False),
-    ("hmc, 16 chains", "sample_z", dict(kernel="hmc", num_chains=16), False),
-    ("hmc, long trajectories", "sample_z", dict(kernel="hmc", num_chains=8, warmup=600, max_leapfrog=128,
+    ("hmc, Newton start (before)", "sample_z", dict(_B, kernel="hmc", num_chains=4), True),
+    ("hmc, mode + profile start", "sample_z", dict(_B, kernel="hmc", num_chains=4), False),
+    ("hmc, 16 chains", "sample_z", dict(_B, kernel="hmc", num_chains=16), False),
+    ("hmc, long trajectories", "sample_z", dict(_B, kernel="hmc", num_chains=8, warmup=600, max_leapfrog=128,
                                                 max_iterations=1000, warmup_max_leapfrog=64,
                                                 trajectory_length=3.0), False),
-    ("hmc, 1000 proxies", "sample_z", dict(kernel="hmc", num_chains=4, num_proxy_samples=1000), False),
-    ("hmc, 1000 proxies, traj 2.5", "sample_z", dict(kernel="hmc", num_chains=4, num_proxy_samples=1000,
-                                                      warmup=150, warmup_max_leapfrog=32, max_leapfrog=64,
-                                                      trajectory_length=2.5), False),
-    ("elliptical slice", "sample_z", dict(kernel="elliptical", num_chains=8), False),
-    ("independence + slice", "sample_z", dict(kernel="independence_elliptical", num_chains=8), False),
+    ("hmc, 1000 proxies", "sample_z", dict(_B, kernel="hmc", num_chains=4, num_proxy_samples=1000), False),
+    ("hmc, 1000 proxies, traj 2.5", "sample_z", dict(kernel="hmc", num_chains=4), False),  # the default
+    ("hmc, 1000 proxies, 8 chains", "sample_z", dict(kernel="hmc", num_chains=8), False),
+    ("elliptical slice", "sample_z", dict(_B, kernel="elliptical", num_chains=8), False),
+    ("independence + slice", "sample_z", dict(_B, kernel="independence_elliptical", num_chains=8), False),
     ("hmc, MaxEnt-Z", "maxent_z", dict(kernel="hmc", num_chains=4), False),
 )
 
@@ -104,8 +110,8 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
 
     from ird_core import experiments, laplace
 
-    print(f"levers at beta {beta:g}, {samples} samples, {experiments.TrialSpec.num_proxy_samples} Sample-Z "
-          f"proxies unless the lever says otherwise, seeds 0-{seeds - 1}:")
+    print(f"levers at beta {beta:g}, {samples} samples, Sample-Z with 100 proxies (and in d = 50 the HMC settings "
+          f"used with them) up to the '1000 proxies' levers, seeds 0-{seeds - 1}:")
     print(f"{'condition':<18} {'lever':<28} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
           f"{'ESS/s':>7} {'vs first':>8}")
     for condition in conditions:
@@ -117,10 +123,15 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
             for seed in range(seeds):
                 spec = experiments.TrialSpec(condition, seed)
                 fields = dict(overrides)
-                proxies = fields.pop("num_proxy_samples", spec.num_proxy_samples)
+                before = fields.pop("before", False)
+                proxies = fields.pop("num_proxy_samples", 100 if before else spec.num_proxy_samples)
                 inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
                 obs = lavaland.proxy_observations(inst, proxies if method == "sample_z" else None, seed + 100, 1.0)
-                settings = dataclasses.replace(spec.sampler(method).for_dim(obs[0].dim), give_up_after=0, **fields)
+                base = spec.sampler(method)
+                settings = base.for_dim(obs[0].dim)
+                if before and settings is base:  # the d = 50 settings, not the small-dimension ones
+                    settings = dataclasses.replace(settings, **_D50_BEFORE)
+                settings = dataclasses.replace(settings, give_up_after=0, **fields)
                 stall = math.inf if newton_only else laplace._NEWTON_STALL
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat

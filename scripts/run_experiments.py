@@ -7,7 +7,7 @@ r"""Run the Lavaland experiments (IRD paper Figure 4 and the appendix factorial)
         [--factorial-samples N] [--traj-work-limit N] [--z-sampler METHOD FIELD=VALUE ...]
 
 With no flags: the paper's scale, 15x15 maps, T = 30, 50-d observations, 100 paired trials per
-condition, both Z-approximations and the full factorial. --quick: the small setting for a fast
+condition, both Z-approximations, 1000 Sample-Z proxies and the full factorial. --quick: the small setting for a fast
 look (8x8, T = 12, 10-d, 64 samples from 4 chains, warm-up 50, thin 4, at most 16 leapfrog
 steps, 100 Sample-Z proxies, factorial on 10 samples; ird_core.experiments.QUICK); flags given
 with --quick override it. --z-sampler sample_z num_chains=8 warmup=200 gives one

@@ -1,0 +1,222 @@
+"""The fast path of ``ird_core.mdp``: scaled linear-space passes on a flat zero-padded layout.
+
+Private to ``ird_core.mdp``, which calls it: it takes an MDP's per-cell rewards and returns
+log Z, expected visits and flags for the batch elements that must be recomputed with
+``mdp``'s exact log-space passes.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ird_core.mdp import GridMDP
+
+# --------------------------------------------------------------------------------------------
+# Fast path: scaled linear-space passes on a flat zero-padded layout
+# --------------------------------------------------------------------------------------------
+#
+# The K grids of a batch are stored row-major in one 1-D array of rows of width ``W + 1``: each
+# row holds a grid row and one zero "separator" entry, and a zero separator row precedes each
+# grid and ends the array. The 5-point neighbour sum of every cell of every grid is then 4 adds
+# of shifted *contiguous* slices (offsets +-1 and +-(W + 1)): a step off a grid lands on a
+# separator, which holds zero in the values and zero "exp-reward" (so garbage computed there
+# is wiped at the next multiply). Every separator inside the computed range has a cell among
+# its neighbours, so the neighbour sums there are positive and safe to divide by.
+#
+# With ``E = exp(r - max r)`` (so ``E <= 1``), the backward values ``v_t = E * (S v_{t+1})`` lie
+# in ``[exp(-(T + 1) range), 5^T]``: no rescaling is needed below ``_RESCALE_EVERY`` steps. The
+# forward pass propagates probabilities through the soft-optimal policy
+# ``pi(s' | s) = v_{t+1}(s') / (S v_{t+1})(s)``, which stay in ``[0, 1]``.
+#
+# Exactness: the passes are linear maps with coefficients in [0, 1], so the only errors beyond
+# ordinary rounding are absolute ones from results that fall into the subnormal range (at most
+# ``smallest_subnormal`` per operation), magnified at most 5x per step: every value carries an
+# absolute error below ``delta = 2 * smallest_subnormal * 5^(T + 1)``. A batch element is
+# recomputed with the exact log-space passes of ``ird_core.mdp`` unless ``delta`` is below
+# ``_RELATIVE_TOLERANCE`` times ``Z``'s scaled value and, summed over the forward pass, times
+# the probability-weighted inverse neighbour sums ``sum_t sum_s d_t(s) / u_t(s)`` that the
+# policy divides by. Ordinary rewards never get there; reward spreads of hundreds of nats do.
+
+#: Relative error allowed from subnormal underflow before an element is recomputed exactly.
+_RELATIVE_TOLERANCE = 1e-13
+#: Backward steps between rescalings; ``5^{256} < 1e180`` so values cannot overflow in between.
+_RESCALE_EVERY = 256
+
+
+def _log_underflow_error(horizon: int) -> float:
+    """``log delta``: a bound on the absolute error of any scaled linear-space value."""
+    periods = 1 + horizon // _RESCALE_EVERY
+    steps = min(horizon, _RESCALE_EVERY) + 1
+    return float(np.log(2.0 * periods * np.finfo(np.float64).smallest_subnormal) + steps * np.log(5.0))
+
+
+@dataclass(frozen=True, eq=False)
+class _FlatGrids:
+    """The flat layout of ``K`` copies of an ``H x W`` grid (``size = (K (H + 1) + 1) (W + 1)``).
+
+    Cell ``(r, c)`` of grid ``k`` is at ``(k (H + 1) + r + 1) (W + 1) + c``; neighbour sums are
+    computed on ``[W + 1, size - W - 1)``, everything but the first and last separator rows.
+    """
+
+    num: int
+    height: int
+    width: int
+
+    # Cached: the passes read these a few million times per posterior.
+    @cached_property
+    def stride(self) -> int:
+        return self.width + 1
+
+    @cached_property
+    def size(self) -> int:
+        return (self.num * (self.height + 1) + 1) * self.stride
+
+    @cached_property
+    def windows(self) -> tuple[slice, slice, slice, slice, slice]:
+        """The computed range and its left, right, up and down neighbours, as slices."""
+        w = self.stride
+        lo, hi = w, self.size - w
+        return (slice(lo, hi), slice(lo - 1, hi - 1), slice(lo + 1, hi + 1), slice(lo - w, hi - w),
+                slice(lo + w, hi + w))
+
+    def pad(self, values: np.ndarray, fill: float = 0.0) -> np.ndarray:
+        """``(K, H, W)`` -> flat ``(size,)`` with ``fill`` on the separators."""
+        out = np.full(self.size, fill)
+        self.interior(out)[...] = values
+        return out
+
+    def interior(self, flat: np.ndarray) -> np.ndarray:
+        """``(..., size)`` -> ``(..., K, H, W)`` view of the grid cells."""
+        rows = flat.reshape(flat.shape[:-1] + (-1, self.stride))[..., 1:, :]
+        grids = rows.reshape(flat.shape[:-1] + (self.num, self.height + 1, self.stride))
+        return grids[..., : self.height, : self.width]
+
+    def blocks(self, flat: np.ndarray) -> np.ndarray:
+        """``(size,)`` -> ``(K, (H + 1) (W + 1))`` view: each grid with the separators after it."""
+        return flat[self.stride :].reshape(self.num, -1)
+
+    def positions(self, row: int, col: int) -> np.ndarray:
+        """Flat indices ``(K,)`` of cell ``(row, col)`` in every grid."""
+        return (np.arange(self.num) * (self.height + 1) + row + 1) * self.stride + col
+
+
+def _neighbour_sum(layout: _FlatGrids, src: np.ndarray, dst: np.ndarray) -> None:
+    """``dst = sum_{s' in succ(s)} src[s']`` on the computed range (separators: garbage)."""
+    here, left, right, up, down = layout.windows
+    out = dst[here]
+    np.add(src[here], src[left], out=out)
+    out += src[right]
+    out += src[up]
+    out += src[down]
+
+
+@dataclass(frozen=True, eq=False)
+class _LinearBackward:
+    """The fast backward pass of a chunk of the batch.
+
+    Attributes:
+        layout: the flat layout of the chunk's ``K`` grids.
+        exp_rewards: ``(size,)`` ``E = exp(r - max r)`` per grid, 0 on the separators.
+        sums: ``(T + 1, size)`` neighbour sums ``u[t] = S v[t + 1]`` (``u[T] = 1``), so that
+            ``v[t] = E * u[t] / rescale[t]``; or ``None`` when not kept.
+        values: ``(T + 1, size)`` the scaled values ``v[t]`` themselves, or ``None`` when the
+            sums are not kept.
+        rescale: backward step ``t`` -> ``(K,)`` factor ``v[t]`` was divided by.
+        log_z: ``(K,)``.
+        suspect: ``(K,)`` True where ``log Z`` may be off by more than ``_RELATIVE_TOLERANCE``.
+    """
+
+    layout: _FlatGrids
+    exp_rewards: np.ndarray
+    sums: "np.ndarray | None"
+    values: "np.ndarray | None"
+    rescale: dict[int, np.ndarray]
+    log_z: np.ndarray
+    suspect: np.ndarray
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(role: str, rows: int, size: int) -> np.ndarray:
+    """A ``(rows, size)`` float64 work array of this thread, reused from call to call.
+
+    Contents are left over from the previous call: callers write every entry they read. Fresh
+    multi-megabyte arrays are page-faulted in on every call, which cost the passes up to 4x.
+    """
+    cache = _SCRATCH.__dict__.setdefault("arrays", {})
+    key = (role, rows, size)
+    out = cache.get(key)
+    if out is None:
+        if len(cache) >= 16:  # many batch shapes in one thread: keep memory bounded
+            cache.clear()
+        out = cache[key] = np.empty((rows, size))
+    return out
+
+
+def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) -> _LinearBackward:
+    """Scaled linear-space soft values of ``rewards`` ``(K, H, W)`` (finite)."""
+    k = rewards.shape[0]
+    layout = _FlatGrids(k, mdp.height, mdp.width)
+    peak = rewards.max(axis=(1, 2))
+    exp_rewards = layout.pad(np.exp(rewards - peak[:, None, None]))
+    horizon = mdp.horizon
+    rows = horizon + 1 if keep_sums else 2  # without the kept sums, two alternating value rows
+    sums = _scratch("sums", horizon + 1 if keep_sums else 1, layout.size)
+    # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
+    sums[-1] = 1.0
+    sums[:, : layout.stride] = 1.0
+    sums[:, layout.size - layout.stride :] = 1.0
+    # Every v[t] is kept for the forward pass (one product per step there instead of two).
+    values = _scratch("values", rows, layout.size)
+    values[horizon % rows] = exp_rewards
+    log_scale = np.zeros(k)
+    rescale: dict[int, np.ndarray] = {}
+    for t in range(horizon - 1, -1, -1):
+        u = sums[t] if keep_sums else sums[0]
+        later, v = values[(t + 1) % rows], values[t % rows]
+        _neighbour_sum(layout, later, u)
+        np.multiply(exp_rewards, u, out=v)
+        if (horizon - t) % _RESCALE_EVERY == 0:
+            grids = layout.blocks(v)
+            scale = grids.max(axis=1)
+            scale = np.where(scale > 0.0, scale, 1.0)
+            grids /= scale[:, None]
+            log_scale += np.log(scale)
+            rescale[t] = scale
+    with np.errstate(divide="ignore"):
+        log_start = np.log(v[layout.positions(*mdp.start)])
+    suspect = ~(log_start - _log_underflow_error(horizon) >= -np.log(_RELATIVE_TOLERANCE))
+    return _LinearBackward(layout, exp_rewards, sums if keep_sums else None, values if keep_sums else None,
+                           rescale, log_start + log_scale + (horizon + 1) * peak, suspect)
+
+
+def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray, np.ndarray]:
+    """Expected visits ``(K, H, W)`` from forward probabilities under the soft-optimal policy
+    ``pi(s' | s) = v[t + 1](s') / u[t](s)``, and a ``(K,)`` flag, True where they may be off by
+    more than ``_RELATIVE_TOLERANCE``."""
+    layout, u, v = back.layout, back.sums, back.values
+    d = np.zeros(layout.size)
+    d[layout.positions(*mdp.start)] = 1.0
+    visits = d.copy()
+    ratio = np.empty(layout.size)
+    ratio_sum = np.zeros(layout.size)
+    spread = np.zeros(layout.size)
+    for t in range(mdp.horizon):
+        np.divide(d, u[t], out=ratio)
+        ratio_sum += ratio
+        _neighbour_sum(layout, ratio, spread)
+        np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1] / rescale[t + 1]
+        visits += d
+    with np.errstate(divide="ignore"):
+        log_ratio = np.log(layout.blocks(ratio_sum).sum(axis=1))
+    suspect = ~(log_ratio + _log_underflow_error(mdp.horizon) <= np.log(_RELATIVE_TOLERANCE))
+    # A NaN from a flagged element can leak into its neighbours in the layout: flag those too.
+    suspect |= ~np.isfinite(layout.blocks(visits).sum(axis=1))
+    return layout.interior(visits), suspect
