@@ -124,19 +124,20 @@ class _LinearBackward:
         layout: the flat layout of the chunk's ``K`` grids.
         exp_rewards: ``(size,)`` ``E = exp(r - max r)`` per grid, 0 on the separators.
         sums: ``(T + 1, size)`` neighbour sums ``u[t] = S v[t + 1]`` (``u[T] = 1``), so that
-            ``v[t] = E * u[t] / rescale[t]``; or ``None`` when not kept.
+            ``v[t] = E * u[t]``, divided by the step's rescaling if it had one; or ``None`` when
+            not kept.
         values: ``(T + 1, size)`` the scaled values ``v[t]`` themselves, or ``None`` when the
             sums are not kept.
-        rescale: backward step ``t`` -> ``(K,)`` factor ``v[t]`` was divided by.
         log_z: ``(K,)``.
         suspect: ``(K,)`` True where ``log Z`` may be off by more than ``_RELATIVE_TOLERANCE``.
+
+    ``sums`` and ``values`` are this thread's work arrays (``_scratch``): valid until its next pass.
     """
 
     layout: _FlatGrids
     exp_rewards: np.ndarray
     sums: "np.ndarray | None"
     values: "np.ndarray | None"
-    rescale: dict[int, np.ndarray]
     log_z: np.ndarray
     suspect: np.ndarray
 
@@ -148,7 +149,7 @@ def _scratch(role: str, rows: int, size: int) -> np.ndarray:
     """A ``(rows, size)`` float64 work array of this thread, reused from call to call.
 
     Contents are left over from the previous call: callers write every entry they read. Fresh
-    multi-megabyte arrays are page-faulted in on every call, which cost the passes up to 4x.
+    multi-megabyte arrays are page-faulted in on every call, which cost the passes 2x at 64 weights.
     """
     cache = _SCRATCH.__dict__.setdefault("arrays", {})
     key = (role, rows, size)
@@ -177,7 +178,6 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     values = _scratch("values", rows, layout.size)
     values[horizon % rows] = exp_rewards
     log_scale = np.zeros(k)
-    rescale: dict[int, np.ndarray] = {}
     for t in range(horizon - 1, -1, -1):
         u = sums[t] if keep_sums else sums[0]
         later, v = values[(t + 1) % rows], values[t % rows]
@@ -189,12 +189,11 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
             scale = np.where(scale > 0.0, scale, 1.0)
             grids /= scale[:, None]
             log_scale += np.log(scale)
-            rescale[t] = scale
     with np.errstate(divide="ignore"):
         log_start = np.log(v[layout.positions(*mdp.start)])
     suspect = ~(log_start - _log_underflow_error(horizon) >= -np.log(_RELATIVE_TOLERANCE))
     return _LinearBackward(layout, exp_rewards, sums if keep_sums else None, values if keep_sums else None,
-                           rescale, log_start + log_scale + (horizon + 1) * peak, suspect)
+                           log_start + log_scale + (horizon + 1) * peak, suspect)
 
 
 def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray, np.ndarray]:
@@ -212,7 +211,7 @@ def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray,
         np.divide(d, u[t], out=ratio)
         ratio_sum += ratio
         _neighbour_sum(layout, ratio, spread)
-        np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1] / rescale[t + 1]
+        np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1], after its rescaling if any
         visits += d
     with np.errstate(divide="ignore"):
         log_ratio = np.log(layout.blocks(ratio_sum).sum(axis=1))

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ird_core.linear_passes import _SCRATCH, _linear_backward, _linear_visitation  # noqa: F401 - tests use _SCRATCH
+from ird_core.linear_passes import _linear_backward, _linear_visitation
 
 __all__ = [
     "MOVES",
@@ -245,7 +245,7 @@ def _chunks(mdp: GridMDP, num: int) -> list[slice]:
     count = -(-num * per_weight // _CHUNK_BYTES)
     if count <= 1:
         return [slice(0, num)] if num else []
-    bounds = np.linspace(0, num, max(1, count) + 1).round().astype(int)
+    bounds = np.linspace(0, num, count + 1).round().astype(int)
     return [slice(int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
 
 

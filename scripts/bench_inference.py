@@ -71,6 +71,12 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
         print(f"{n:>6} {np.sqrt(np.mean((values - reference) ** 2)):>17.3f} {reference.std():>18.3f}")
 
 
+#: ``before=True`` in a lever's overrides: the experiments' settings before they moved to 1000
+#: proxies, i.e. 100 proxies and, in d = 50, these HMC settings (100 warm-up iterations, at most
+#: 32 leapfrog steps, the sampler's default trajectory length).
+_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0)
+_B = dict(before=True)
+
 #: The levers measured by ``--levers`` (Sample-Z at the experiments' beta). Each is
 #: ``(label, method, overrides, newton_start_only)``; every run uses the experiments' default
 #: sampler settings of its method for the condition's dimension
@@ -79,12 +85,6 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 #: rules), with the lever's ``overrides`` of those settings; ``num_proxy_samples`` in the overrides
 #: replaces the experiments' ``TrialSpec.num_proxy_samples`` instead, and ``before`` (see
 #: ``_D50_BEFORE``) starts from the settings the experiments used with 100 proxies.
-
-#: ``before=True`` in a lever's overrides: the experiments' settings before they moved to 1000
-#: proxies, i.e. 100 proxies and, in d = 50, these HMC settings (100 warm-up iterations, at most
-#: 32 leapfrog steps, the sampler's default trajectory length).
-_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0)
-_B = dict(before=True)
 LEVERS = (
     ("hmc, Newton start (before)", "sample_z", dict(_B, kernel="hmc", num_chains=4), True),
     ("hmc, mode + profile start", "sample_z", dict(_B, kernel="hmc", num_chains=4), False),
