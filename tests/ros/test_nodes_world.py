@@ -61,13 +61,19 @@ class Probe:
                    processes=[self.world])
         return self.received[names.TOPIC_PROXY][-1]
 
-    def messages(self, condition: str, seed: int) -> dict[str, Any]:
-        """The latched messages of the generation (condition, seed), all with the proxy's stamp."""
+    def mark(self) -> int:
+        """A point in the received proxies, for :meth:`messages` ``since``."""
+        return len(self.received[names.TOPIC_PROXY])
+
+    def messages(self, condition: str, seed: int, since: int = 0) -> dict[str, Any]:
+        """The latched messages of the generation (condition, seed), all with the proxy's stamp;
+        with ``since`` (a :meth:`mark`), only a generation received after that mark (the service
+        answers before its publications arrive, so an earlier one would otherwise match)."""
         proxies = self.received[names.TOPIC_PROXY]
         out: dict[str, Any] = {}
 
         def complete() -> bool:
-            matching = [p for p in proxies if (p.condition, p.seed) == (condition, seed)]
+            matching = [p for p in proxies[since:] if (p.condition, p.seed) == (condition, seed)]
             if not matching:
                 return False
             stamp = matching[-1].header.stamp
@@ -236,9 +242,10 @@ def test_world_file_is_published_with_every_training_world() -> None:
 
             assert probe.generate("side_effects", 4).success
             assert probe.messages("side_effects", 4)[names.TOPIC_TERRAIN].class_names == list(TERRAIN_NAMES)
+            mark = probe.mark()
             again = probe.generate(lavaland.FILE_CONDITION, 0)
             assert again.success, again.message
-            back = probe.messages(lavaland.FILE_CONDITION, inst.seed)
+            back = probe.messages(lavaland.FILE_CONDITION, inst.seed, since=mark)
             assert back[names.TOPIC_PROXY].header.stamp != msgs[names.TOPIC_PROXY].header.stamp
         finally:
             node.destroy_node()
