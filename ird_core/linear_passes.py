@@ -10,7 +10,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -106,14 +106,18 @@ class _FlatGrids:
         return (np.arange(self.num) * (self.height + 1) + row + 1) * self.stride + col
 
 
-def _neighbour_sum(layout: _FlatGrids, src: np.ndarray, dst: np.ndarray) -> None:
-    """``dst = sum_{s' in succ(s)} src[s']`` on the computed range (separators: garbage)."""
-    here, left, right, up, down = layout.windows
-    out = dst[here]
-    np.add(src[here], src[left], out=out)
-    out += src[right]
-    out += src[up]
-    out += src[down]
+def _neighbour_sum(src: "tuple[np.ndarray, ...]", dst: np.ndarray) -> None:
+    """``dst = sum_{s' in succ(s)} src[s']`` on the computed range (separators: garbage).
+
+    ``src``: a row's five windows (``_FlatGrids.windows`` applied: here, left, right, up, down);
+    ``dst``: another row's ``here`` window. Views made once per work array (``_work``): slicing
+    five views per step cost as much as the adds themselves.
+    """
+    here, left, right, up, down = src
+    np.add(here, left, out=dst)
+    np.add(dst, right, out=dst)
+    np.add(dst, up, out=dst)
+    np.add(dst, down, out=dst)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,21 +127,21 @@ class _LinearBackward:
     Attributes:
         layout: the flat layout of the chunk's ``K`` grids.
         exp_rewards: ``(size,)`` ``E = exp(r - max r)`` per grid, 0 on the separators.
-        sums: ``(T + 1, size)`` neighbour sums ``u[t] = S v[t + 1]`` (``u[T] = 1``), so that
-            ``v[t] = E * u[t]``, divided by the step's rescaling if it had one; or ``None`` when
-            not kept.
-        values: ``(T + 1, size)`` the scaled values ``v[t]`` themselves, or ``None`` when the
-            sums are not kept.
+        sums: work array ``(T + 1, size)`` of neighbour sums ``u[t] = S v[t + 1]`` (``u[T] = 1``),
+            so that ``v[t] = E * u[t]``, divided by the step's rescaling if it had one; or
+            ``None`` when not kept.
+        values: work array ``(T + 1, size)`` of the scaled values ``v[t]`` themselves, or
+            ``None`` when the sums are not kept.
         log_z: ``(K,)``.
         suspect: ``(K,)`` True where ``log Z`` may be off by more than ``_RELATIVE_TOLERANCE``.
 
-    ``sums`` and ``values`` are this thread's work arrays (``_scratch``): valid until its next pass.
+    ``sums`` and ``values`` are this thread's work arrays (``_work``): valid until its next pass.
     """
 
     layout: _FlatGrids
     exp_rewards: np.ndarray
-    sums: "np.ndarray | None"
-    values: "np.ndarray | None"
+    sums: "_Work | None"
+    values: "_Work | None"
     log_z: np.ndarray
     suspect: np.ndarray
 
@@ -145,19 +149,27 @@ class _LinearBackward:
 _SCRATCH = threading.local()
 
 
-def _scratch(role: str, rows: int, size: int) -> np.ndarray:
-    """A ``(rows, size)`` float64 work array of this thread, reused from call to call.
+class _Work(NamedTuple):
+    """A ``(rows, size)`` work array and, per row, its five windows (``_FlatGrids.windows``)."""
+
+    array: np.ndarray
+    windows: "tuple[tuple[np.ndarray, ...], ...]"
+
+
+def _work(role: str, rows: int, layout: _FlatGrids) -> _Work:
+    """A ``(rows, layout.size)`` float64 work array of this thread, reused from call to call.
 
     Contents are left over from the previous call: callers write every entry they read. Fresh
     multi-megabyte arrays are page-faulted in on every call, which cost the passes 2x at 64 weights.
     """
     cache = _SCRATCH.__dict__.setdefault("arrays", {})
-    key = (role, rows, size)
+    key = (role, rows, layout.size, layout.stride)
     out = cache.get(key)
     if out is None:
         if len(cache) >= 16:  # many batch shapes in one thread: keep memory bounded
             cache.clear()
-        out = cache[key] = np.empty((rows, size))
+        array = np.empty((rows, layout.size))
+        out = cache[key] = _Work(array, tuple(tuple(row[s] for s in layout.windows) for row in array))
     return out
 
 
@@ -169,20 +181,22 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     exp_rewards = layout.pad(np.exp(rewards - peak[:, None, None]))
     horizon = mdp.horizon
     rows = horizon + 1 if keep_sums else 2  # without the kept sums, two alternating value rows
-    sums = _scratch("sums", horizon + 1 if keep_sums else 1, layout.size)
+    sums = _work("sums", horizon + 1 if keep_sums else 1, layout)
+    u_all = sums.array
     # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
-    sums[-1] = 1.0
-    sums[:, : layout.stride] = 1.0
-    sums[:, layout.size - layout.stride :] = 1.0
+    u_all[-1] = 1.0
+    u_all[:, : layout.stride] = 1.0
+    u_all[:, layout.size - layout.stride :] = 1.0
     # Every v[t] is kept for the forward pass (one product per step there instead of two).
-    values = _scratch("values", rows, layout.size)
-    values[horizon % rows] = exp_rewards
+    values = _work("values", rows, layout)
+    v_all = values.array
+    v_all[horizon % rows] = exp_rewards
     log_scale = np.zeros(k)
     for t in range(horizon - 1, -1, -1):
-        u = sums[t] if keep_sums else sums[0]
-        later, v = values[(t + 1) % rows], values[t % rows]
-        _neighbour_sum(layout, later, u)
-        np.multiply(exp_rewards, u, out=v)
+        row = t if keep_sums else 0
+        v = v_all[t % rows]
+        _neighbour_sum(values.windows[(t + 1) % rows], sums.windows[row][0])
+        np.multiply(exp_rewards, u_all[row], out=v)
         if (horizon - t) % _RESCALE_EVERY == 0:
             grids = layout.blocks(v)
             scale = grids.max(axis=1)
@@ -200,19 +214,22 @@ def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray,
     """Expected visits ``(K, H, W)`` from forward probabilities under the soft-optimal policy
     ``pi(s' | s) = v[t + 1](s') / u[t](s)``, and a ``(K,)`` flag, True where they may be off by
     more than ``_RELATIVE_TOLERANCE``."""
-    layout, u, v = back.layout, back.sums, back.values
-    d = np.zeros(layout.size)
+    layout, horizon = back.layout, mdp.horizon
+    u, v = back.sums.array, back.values.array
+    work = _work("forward", 4, layout)
+    d, ratio, spread, ratio_sum = work.array
+    d[:] = 0.0
     d[layout.positions(*mdp.start)] = 1.0
     visits = d.copy()
-    ratio = np.empty(layout.size)
-    ratio_sum = np.zeros(layout.size)
-    spread = np.zeros(layout.size)
-    for t in range(mdp.horizon):
+    ratio_sum[:] = 0.0
+    spread[: layout.stride] = 0.0  # never written below: zero so that 0 * garbage cannot be NaN
+    spread[layout.size - layout.stride :] = 0.0
+    for t in range(horizon):
         np.divide(d, u[t], out=ratio)
-        ratio_sum += ratio
-        _neighbour_sum(layout, ratio, spread)
+        np.add(ratio_sum, ratio, out=ratio_sum)
+        _neighbour_sum(work.windows[1], work.windows[2][0])
         np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1], after its rescaling if any
-        visits += d
+        np.add(visits, d, out=visits)
     with np.errstate(divide="ignore"):
         log_ratio = np.log(layout.blocks(ratio_sum).sum(axis=1))
     suspect = ~(log_ratio + _log_underflow_error(mdp.horizon) <= np.log(_RELATIVE_TOLERANCE))

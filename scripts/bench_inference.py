@@ -73,8 +73,8 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 
 #: ``before=True`` in a lever's overrides: the experiments' settings before they moved to 1000
 #: proxies, i.e. 100 proxies and, in d = 50, these HMC settings (100 warm-up iterations, at most
-#: 32 leapfrog steps, the sampler's default trajectory length).
-_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0)
+#: 32 leapfrog steps, the sampler's default trajectory length, checks every 64 iterations).
+_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0, check_every=0)
 _B = dict(before=True)
 
 #: The levers measured by ``--levers`` (Sample-Z at the experiments' beta). Each is
@@ -94,6 +94,7 @@ LEVERS = (
                                                 trajectory_length=3.0), False),
     ("hmc, 1000 proxies", "sample_z", dict(_B, kernel="hmc", num_chains=4, num_proxy_samples=1000), False),
     ("hmc, 1000 proxies, traj 2.5", "sample_z", dict(kernel="hmc", num_chains=4), False),  # the default
+    ("hmc, 1000 proxies, 150 warm-up", "sample_z", dict(kernel="hmc", num_chains=4, warmup=150), False),
     ("hmc, 1000 proxies, 8 chains", "sample_z", dict(kernel="hmc", num_chains=8), False),
     ("elliptical slice", "sample_z", dict(_B, kernel="elliptical", num_chains=8), False),
     ("independence + slice", "sample_z", dict(_B, kernel="independence_elliptical", num_chains=8), False),
