@@ -110,8 +110,8 @@ def _neighbour_sum(src: "tuple[np.ndarray, ...]", dst: np.ndarray) -> None:
     """``dst = sum_{s' in succ(s)} src[s']`` on the computed range (separators: garbage).
 
     ``src``: a row's five windows (``_FlatGrids.windows`` applied: here, left, right, up, down);
-    ``dst``: another row's ``here`` window. Views made once per work array (``_work``): slicing
-    five views per step cost as much as the adds themselves.
+    ``dst``: another row's ``here`` window. The views are made once per work array (``_work``)
+    instead of five slicings per step: about 8% of a pass at 4-16 weights, bit for bit the same.
     """
     here, left, right, up, down = src
     np.add(here, left, out=dst)

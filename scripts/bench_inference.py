@@ -113,7 +113,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
 
     print(f"levers at beta {beta:g}, {samples} samples, Sample-Z with 100 proxies (and in d = 50 the HMC settings "
           f"used with them) up to the '1000 proxies' levers, seeds 0-{seeds - 1}:")
-    print(f"{'condition':<18} {'lever':<28} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
+    print(f"{'condition':<18} {'lever':<30} {'R-hat<=1.1':>10} {'med R-hat':>9} {'CPU s':>6} {'ESS':>6} "
           f"{'ESS/s':>7} {'vs first':>8}")
     for condition in conditions:
         first: dict[str, float] = {}
@@ -142,7 +142,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
             r_hat, cpu, ess = (np.array(v) for v in zip(*rows))
             rate = float(np.mean(ess) / np.mean(cpu))
             first.setdefault(method, rate)
-            print(f"{condition:<18} {label:<28} {int(np.sum(r_hat <= 1.1)):>5}/{seeds:<4} {np.median(r_hat):>9.3f} "
+            print(f"{condition:<18} {label:<30} {int(np.sum(r_hat <= 1.1)):>5}/{seeds:<4} {np.median(r_hat):>9.3f} "
                   f"{np.mean(cpu):>6.1f} {np.mean(ess):>6.0f} {rate:>7.1f} {rate / first[method]:>7.1f}x", flush=True)
 
 
