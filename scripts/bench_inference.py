@@ -72,9 +72,10 @@ def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> 
 
 
 #: ``before=True`` in a lever's overrides: the experiments' settings before they moved to 1000
-#: proxies, i.e. 100 proxies and, in d = 50, these HMC settings (100 warm-up iterations, at most
-#: 32 leapfrog steps, the sampler's default trajectory length, checks every 64 iterations).
-_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0, check_every=0)
+#: proxies, i.e. 100 proxies, the sampler's default check blocks (``max(n0, 50)`` iterations) and,
+#: in d = 50, these HMC settings (100 warm-up iterations, at most 32 leapfrog steps, the sampler's
+#: default trajectory length).
+_D50_BEFORE = dict(warmup=100, max_leapfrog=32, warmup_max_leapfrog=0, trajectory_length=0.0)
 _B = dict(before=True)
 
 #: The levers measured by ``--levers`` (Sample-Z at the experiments' beta). Each is
@@ -130,8 +131,8 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
                 obs = lavaland.proxy_observations(inst, proxies if method == "sample_z" else None, seed + 100, 1.0)
                 base = spec.sampler(method)
                 settings = base.for_dim(obs[0].dim)
-                if before and settings is base:  # the d = 50 settings, not the small-dimension ones
-                    settings = dataclasses.replace(settings, **_D50_BEFORE)
+                if before:  # default check blocks and, for the d = 50 settings (not the small ones), _D50_BEFORE
+                    settings = dataclasses.replace(settings, check_every=0, **(_D50_BEFORE if settings is base else {}))
                 settings = dataclasses.replace(settings, give_up_after=0, **fields)
                 stall = math.inf if newton_only else laplace._NEWTON_STALL
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
