@@ -13,7 +13,7 @@ per training MDP; the choice terms need no MDP pass at all.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp, softmax
+from scipy.special import softmax
 
 from ird_core.mdp import GridMDP, expected_visitation, feature_expectations
 
@@ -21,6 +21,7 @@ __all__ = [
     "METHODS",
     "DEFAULT_NUM_PROXY_SAMPLES",
     "PROXY_BATCH",
+    "logsumexp_rows",
     "log_prior",
     "log_prior_grad",
     "maxent_z_log_likelihood",
@@ -64,6 +65,19 @@ def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if n <= width:
         return a @ b
     return np.concatenate([a @ b[:, lo:lo + width] for lo in range(0, n, width)], axis=1)
+
+
+def logsumexp_rows(scores: np.ndarray) -> np.ndarray:
+    """``scipy.special.logsumexp(scores, axis=1)`` for finite ``scores`` ``(K, n) -> (K,)``, bit
+    for bit (the same steps as scipy 1.17's: the maxima are taken out of the sum and added back as
+    ``log1p(rest / count) + log(count) + max``), without scipy's array-API dispatch, which cost
+    ~0.3 ms a call, a fifth of a d = 10 Sample-Z density evaluation."""
+    peak = scores.max(axis=1, keepdims=True)
+    at_peak = scores == peak
+    count = at_peak.sum(axis=1, keepdims=True, dtype=np.float64)
+    rest = np.exp(np.where(at_peak, -np.inf, scores) - peak).sum(axis=1, keepdims=True)
+    rest = np.where(rest == 0, rest, rest / count)
+    return (np.log1p(rest) + np.log(count) + peak)[:, 0]
 
 
 def log_prior(weights: np.ndarray, prior_sigma: float) -> np.ndarray:
@@ -114,7 +128,7 @@ def sample_z_log_likelihood(weights: np.ndarray, proxy_features: np.ndarray, own
     No ``- log(N + 1)``: the constant cancels in the posterior.
     """
     scores = sample_z_scores(weights, own_features, sample_features, beta)
-    return beta * (weights @ proxy_features) - logsumexp(scores, axis=1)
+    return beta * (weights @ proxy_features) - logsumexp_rows(scores)
 
 
 def sample_z_log_likelihood_grad(weights: np.ndarray, proxy_features: np.ndarray,
@@ -167,7 +181,7 @@ def choice_log_likelihood(weights: np.ndarray, option_features: np.ndarray, chos
         ``(K,)`` (normalised: ``<= 0``).
     """
     scores = _choice_scores(weights, option_features, beta)
-    return scores[:, chosen] - logsumexp(scores, axis=1)
+    return scores[:, chosen] - logsumexp_rows(scores)
 
 
 def choice_log_likelihood_and_grad(weights: np.ndarray, option_features: np.ndarray, chosen: int,

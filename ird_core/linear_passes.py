@@ -8,11 +8,14 @@ log Z, expected visits and flags for the batch elements that must be recomputed 
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
-from functools import cached_property
-from typing import TYPE_CHECKING, NamedTuple
+from functools import cached_property, lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from ird_core import linear_kernels
 
 if TYPE_CHECKING:
     from ird_core.mdp import GridMDP
@@ -45,10 +48,12 @@ if TYPE_CHECKING:
 
 #: Relative error allowed from subnormal underflow before an element is recomputed exactly.
 _RELATIVE_TOLERANCE = 1e-13
+_LOG_RELATIVE_TOLERANCE = float(np.log(_RELATIVE_TOLERANCE))
 #: Backward steps between rescalings; ``5^{256} < 1e180`` so values cannot overflow in between.
 _RESCALE_EVERY = 256
 
 
+@lru_cache(maxsize=64)
 def _log_underflow_error(horizon: int) -> float:
     """``log delta``: a bound on the absolute error of any scaled linear-space value."""
     periods = 1 + horizon // _RESCALE_EVERY
@@ -101,9 +106,19 @@ class _FlatGrids:
         """``(size,)`` -> ``(K, (H + 1) (W + 1))`` view: each grid with the separators after it."""
         return flat[self.stride :].reshape(self.num, -1)
 
+    @lru_cache(maxsize=16)  # the passes ask twice per call for the start cell
     def positions(self, row: int, col: int) -> np.ndarray:
-        """Flat indices ``(K,)`` of cell ``(row, col)`` in every grid."""
-        return (np.arange(self.num) * (self.height + 1) + row + 1) * self.stride + col
+        """Flat indices ``(K,)`` of cell ``(row, col)`` in every grid (read-only)."""
+        out = (np.arange(self.num) * (self.height + 1) + row + 1) * self.stride + col
+        out.flags.writeable = False
+        return out
+
+
+@lru_cache(maxsize=256)
+def _layout(num: int, height: int, width: int) -> _FlatGrids:
+    """The shared ``_FlatGrids`` of a batch shape, so that its cached sizes, windows and start
+    positions are computed once per shape, not once per pass."""
+    return _FlatGrids(num, height, width)
 
 
 def _neighbour_sum(src: "tuple[np.ndarray, ...]", dst: np.ndarray) -> None:
@@ -149,11 +164,26 @@ class _LinearBackward:
 _SCRATCH = threading.local()
 
 
-class _Work(NamedTuple):
-    """A ``(rows, size)`` work array and, per row, its five windows (``_FlatGrids.windows``)."""
+class _Work:
+    """A ``(rows, size)`` work array and, per row, its five windows (``_FlatGrids.windows``),
+    made on first use: only the numpy loops read them, and each is made once per work array."""
 
-    array: np.ndarray
-    windows: "tuple[tuple[np.ndarray, ...], ...]"
+    __slots__ = ("array", "_slices", "_windows")
+
+    def __init__(self, array: np.ndarray, slices: "tuple[slice, ...]") -> None:
+        self.array = array
+        self._slices = slices
+        self._windows: "dict[int, tuple[np.ndarray, ...]]" = {}
+
+    def windows(self, row: int) -> "tuple[np.ndarray, ...]":
+        out = self._windows.get(row)
+        if out is None:
+            out = self._windows[row] = tuple(self.array[row][s] for s in self._slices)
+        return out
+
+
+#: Bytes of work arrays one thread keeps between calls (least recently used dropped first).
+_WORK_BYTES = 64_000_000
 
 
 def _work(role: str, rows: int, layout: _FlatGrids) -> _Work:
@@ -161,51 +191,66 @@ def _work(role: str, rows: int, layout: _FlatGrids) -> _Work:
 
     Contents are left over from the previous call: callers write every entry they read. Fresh
     multi-megabyte arrays are page-faulted in on every call, which cost the passes 2x at 64 weights.
+    Samplers whose batch size varies from call to call (the slice moves) cycle through a few
+    dozen shapes, so the cache drops the least recently used arrays, not all of them.
     """
-    cache = _SCRATCH.__dict__.setdefault("arrays", {})
+    cache: "OrderedDict[tuple, _Work]" = _SCRATCH.__dict__.setdefault("arrays", OrderedDict())
     key = (role, rows, layout.size, layout.stride)
     out = cache.get(key)
-    if out is None:
-        if len(cache) >= 16:  # many batch shapes in one thread: keep memory bounded
-            cache.clear()
-        array = np.empty((rows, layout.size))
-        out = cache[key] = _Work(array, tuple(tuple(row[s] for s in layout.windows) for row in array))
+    if out is not None:
+        cache.move_to_end(key)
+        return out
+    out = cache[key] = _Work(np.empty((rows, layout.size)), layout.windows)
+    total = sum(w.array.nbytes for w in cache.values())
+    while total > _WORK_BYTES and len(cache) > 1:
+        total -= cache.popitem(last=False)[1].array.nbytes
     return out
 
 
 def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) -> _LinearBackward:
     """Scaled linear-space soft values of ``rewards`` ``(K, H, W)`` (finite)."""
     k = rewards.shape[0]
-    layout = _FlatGrids(k, mdp.height, mdp.width)
+    layout = _layout(k, mdp.height, mdp.width)
     peak = rewards.max(axis=(1, 2))
-    exp_rewards = layout.pad(np.exp(rewards - peak[:, None, None]))
+    exp_grids = np.exp(rewards - peak[:, None, None])
     horizon = mdp.horizon
     rows = horizon + 1 if keep_sums else 2  # without the kept sums, two alternating value rows
     sums = _work("sums", horizon + 1 if keep_sums else 1, layout)
     u_all = sums.array
-    # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
-    u_all[-1] = 1.0
-    u_all[:, : layout.stride] = 1.0
-    u_all[:, layout.size - layout.stride :] = 1.0
     # Every v[t] is kept for the forward pass (one product per step there instead of two).
     values = _work("values", rows, layout)
     v_all = values.array
-    v_all[horizon % rows] = exp_rewards
+    compiled = linear_kernels.engine() == "numba"
+    if compiled:
+        exp_rewards = np.empty(layout.size)
+        linear_kernels.backward_start(exp_grids, exp_rewards, u_all, v_all, horizon, layout.stride)
+    else:
+        exp_rewards = layout.pad(exp_grids)
+        # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
+        u_all[-1] = 1.0
+        u_all[:, : layout.stride] = 1.0
+        u_all[:, layout.size - layout.stride :] = 1.0
+        v_all[horizon % rows] = exp_rewards
     log_scale = np.zeros(k)
-    for t in range(horizon - 1, -1, -1):
-        row = t if keep_sums else 0
-        v = v_all[t % rows]
-        _neighbour_sum(values.windows[(t + 1) % rows], sums.windows[row][0])
-        np.multiply(exp_rewards, u_all[row], out=v)
-        if (horizon - t) % _RESCALE_EVERY == 0:
-            grids = layout.blocks(v)
+    for t_first in range(horizon - 1, -1, -_RESCALE_EVERY):  # segments between rescalings
+        t_last = max(t_first - _RESCALE_EVERY + 1, 0)
+        if compiled:
+            linear_kernels.backward_steps(exp_rewards, u_all, v_all, t_first, t_last, keep_sums, layout.stride)
+        else:
+            for t in range(t_first, t_last - 1, -1):
+                row = t if keep_sums else 0
+                _neighbour_sum(values.windows((t + 1) % rows), sums.windows(row)[0])
+                np.multiply(exp_rewards, u_all[row], out=v_all[t % rows])
+        if (horizon - t_last) % _RESCALE_EVERY == 0:
+            grids = layout.blocks(v_all[t_last % rows])
             scale = grids.max(axis=1)
             scale = np.where(scale > 0.0, scale, 1.0)
             grids /= scale[:, None]
             log_scale += np.log(scale)
+    v = v_all[0]
     with np.errstate(divide="ignore"):
         log_start = np.log(v[layout.positions(*mdp.start)])
-    suspect = ~(log_start - _log_underflow_error(horizon) >= -np.log(_RELATIVE_TOLERANCE))
+    suspect = ~(log_start - _log_underflow_error(horizon) >= -_LOG_RELATIVE_TOLERANCE)
     return _LinearBackward(layout, exp_rewards, sums if keep_sums else None, values if keep_sums else None,
                            log_start + log_scale + (horizon + 1) * peak, suspect)
 
@@ -218,21 +263,26 @@ def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray,
     u, v = back.sums.array, back.values.array
     work = _work("forward", 4, layout)
     d, ratio, spread, ratio_sum = work.array
-    d[:] = 0.0
-    d[layout.positions(*mdp.start)] = 1.0
-    visits = d.copy()
-    ratio_sum[:] = 0.0
-    spread[: layout.stride] = 0.0  # never written below: zero so that 0 * garbage cannot be NaN
-    spread[layout.size - layout.stride :] = 0.0
-    for t in range(horizon):
-        np.divide(d, u[t], out=ratio)
-        np.add(ratio_sum, ratio, out=ratio_sum)
-        _neighbour_sum(work.windows[1], work.windows[2][0])
-        np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1], after its rescaling if any
-        np.add(visits, d, out=visits)
+    starts = layout.positions(*mdp.start)
+    visits = np.empty(layout.size)
+    if linear_kernels.engine() == "numba":
+        linear_kernels.forward_steps(u, v, starts, ratio, spread, ratio_sum, visits, horizon, layout.stride)
+    else:
+        d[:] = 0.0
+        d[starts] = 1.0
+        visits[:] = d
+        ratio_sum[:] = 0.0
+        spread[: layout.stride] = 0.0  # never written below: zero so that 0 * garbage cannot be NaN
+        spread[layout.size - layout.stride :] = 0.0
+        for t in range(horizon):
+            np.divide(d, u[t], out=ratio)
+            np.add(ratio_sum, ratio, out=ratio_sum)
+            _neighbour_sum(work.windows(1), work.windows(2)[0])
+            np.multiply(spread, v[t + 1], out=d)  # v[t + 1] = E u[t + 1], after its rescaling if any
+            np.add(visits, d, out=visits)
     with np.errstate(divide="ignore"):
         log_ratio = np.log(layout.blocks(ratio_sum).sum(axis=1))
-    suspect = ~(log_ratio + _log_underflow_error(mdp.horizon) <= np.log(_RELATIVE_TOLERANCE))
+    suspect = ~(log_ratio + _log_underflow_error(mdp.horizon) <= _LOG_RELATIVE_TOLERANCE)
     # A NaN from a flagged element can leak into its neighbours in the layout: flag those too.
     suspect |= ~np.isfinite(layout.blocks(visits).sum(axis=1))
     return layout.interior(visits), suspect
