@@ -2,7 +2,9 @@
 
 Private to ``ird_core.mdp``, which calls it: it takes an MDP's per-cell rewards and returns
 log Z, expected visits and flags for the batch elements that must be recomputed with
-``mdp``'s exact log-space passes.
+``mdp``'s exact log-space passes. The passes' time loops run as numpy calls or, when numba is
+installed, as the compiled kernels of ``ird_core.linear_kernels`` (``IRD_ENGINE``), which give
+the same results bit for bit.
 """
 
 from __future__ import annotations
@@ -223,7 +225,7 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     compiled = linear_kernels.engine() == "numba"
     if compiled:
         exp_rewards = np.empty(layout.size)
-        linear_kernels.backward_start(exp_grids, exp_rewards, u_all, v_all, horizon, layout.stride)
+        linear_kernels.compiled().backward_start(exp_grids, exp_rewards, u_all, v_all, horizon, layout.stride)
     else:
         exp_rewards = layout.pad(exp_grids)
         # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
@@ -235,7 +237,7 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     for t_first in range(horizon - 1, -1, -_RESCALE_EVERY):  # segments between rescalings
         t_last = max(t_first - _RESCALE_EVERY + 1, 0)
         if compiled:
-            linear_kernels.backward_steps(exp_rewards, u_all, v_all, t_first, t_last, keep_sums, layout.stride)
+            linear_kernels.compiled().backward_steps(exp_rewards, u_all, v_all, t_first, t_last, keep_sums, layout.stride)
         else:
             for t in range(t_first, t_last - 1, -1):
                 row = t if keep_sums else 0
@@ -266,7 +268,7 @@ def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray,
     starts = layout.positions(*mdp.start)
     visits = np.empty(layout.size)
     if linear_kernels.engine() == "numba":
-        linear_kernels.forward_steps(u, v, starts, ratio, spread, ratio_sum, visits, horizon, layout.stride)
+        linear_kernels.compiled().forward_steps(u, v, starts, ratio, spread, ratio_sum, visits, horizon, layout.stride)
     else:
         d[:] = 0.0
         d[starts] = 1.0
