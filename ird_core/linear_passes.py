@@ -222,10 +222,10 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     # Every v[t] is kept for the forward pass (one product per step there instead of two).
     values = _work("values", rows, layout)
     v_all = values.array
-    compiled = linear_kernels.engine() == "numba"
-    if compiled:
+    kernels = linear_kernels.compiled() if linear_kernels.engine() == "numba" else None
+    if kernels is not None:
         exp_rewards = np.empty(layout.size)
-        linear_kernels.compiled().backward_start(exp_grids, exp_rewards, u_all, v_all, horizon, layout.stride)
+        kernels.backward_start(exp_grids, exp_rewards, u_all, v_all, horizon, layout.stride)
     else:
         exp_rewards = layout.pad(exp_grids)
         # u = 1 where no neighbour sum is written (u[T], the first and last separator rows).
@@ -236,8 +236,8 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     log_scale = np.zeros(k)
     for t_first in range(horizon - 1, -1, -_RESCALE_EVERY):  # segments between rescalings
         t_last = max(t_first - _RESCALE_EVERY + 1, 0)
-        if compiled:
-            linear_kernels.compiled().backward_steps(exp_rewards, u_all, v_all, t_first, t_last, keep_sums, layout.stride)
+        if kernels is not None:
+            kernels.backward_steps(exp_rewards, u_all, v_all, t_first, t_last, keep_sums, layout.stride)
         else:
             for t in range(t_first, t_last - 1, -1):
                 row = t if keep_sums else 0

@@ -253,21 +253,9 @@ def _visitation_and_log_partition(mdp: GridMDP, weights: np.ndarray) -> tuple[np
     """Expected visits ``(K, H, W)`` and ``log Z`` ``(K,)``: linear-space passes on cache-sized
     chunks, with the exact log-space passes for the elements the fast path flags."""
     rewards = cell_rewards(mdp, weights)
-    parts = _chunks(mdp, len(rewards))
-    if len(parts) == 1:  # the sampler's case: no copies into the batch's arrays
-        back = _linear_backward(mdp, rewards)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            visits, unsure = _linear_visitation(mdp, back)
-        log_z = back.log_z
-        redo = back.suspect | unsure | ~np.isfinite(log_z)
-        if redo.any():
-            redo = np.flatnonzero(redo)
-            log_visits, log_z[redo] = _log_visitation_exact(mdp, rewards[redo])
-            visits[redo] = np.exp(log_visits)
-        return visits, log_z
     visits = np.empty(rewards.shape)
     log_z = np.empty(len(rewards))
-    for part in parts:
+    for part in _chunks(mdp, len(rewards)):
         back = _linear_backward(mdp, rewards[part])
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             visits[part], unsure = _linear_visitation(mdp, back)
