@@ -16,7 +16,7 @@ loop over cells (the exponentials, rescaling every ``_RESCALE_EVERY`` steps, log
 flags) stays in numpy there: numpy's ``exp`` and ``log`` need not round like the C library's.
 
 Measured (``scripts/bench_mdp.py``, second table): 2.5-3x per call at 4-32 weights; the
-experiments' default run went from 42.7 to 13.0 minutes with the same results.
+experiments' default run went from 42.7 to 13.2 minutes with the same results.
 """
 
 from __future__ import annotations

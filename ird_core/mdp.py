@@ -45,6 +45,7 @@ __all__ = [
     "path_features",
     "path_return",
     "validate_path",
+    "warm_up",
 ]
 
 #: The actions as (d_row, d_col), in tie-breaking order: "stay" first, so an indifferent agent
@@ -412,3 +413,14 @@ def path_features(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray") -> 
 def path_return(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray", weights: np.ndarray) -> np.ndarray:
     """``w_k . phi(xi)`` for a batch ``(K, d)`` of weights; ``(K,)``."""
     return _as_weights(mdp, weights) @ path_features(mdp, cells)
+
+
+def warm_up() -> None:
+    """Run one tiny pass of each kind, so that the compiled engine of the passes
+    (``ird_core.linear_kernels``: numba's import, and its kernels loaded from the cache or
+    compiled, ~0.8 s or ~4 s) is paid now, by a worker starting up, not by its first request.
+    Without numba (or with ``IRD_ENGINE=numpy``) it costs about a millisecond."""
+    grid = GridMDP(np.zeros((2, 2, 1)), (0, 0), 2)
+    weights = np.zeros((1, 1))
+    log_partition(grid, weights)
+    log_partition_and_feature_expectations(grid, weights)

@@ -320,7 +320,7 @@ class InferenceNode(Node):
             for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
                 os.environ[var] = str(p["worker_threads"])
         self._offload = Offload("inference", p["max_pending"], max_workers=p["max_workers"],
-                                warm_modules=("ird_core.inference",), logger=self.get_logger())
+                                warm_modules=("ird_core.inference", "ird_core.mdp"), logger=self.get_logger())
         self._pub = self.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
         self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
         self.evidence = Evidence()

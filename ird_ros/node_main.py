@@ -167,7 +167,9 @@ def _warm(modules: Sequence[str]) -> int:  # pragma: no cover - runs in the work
     import importlib
 
     for name in modules:
-        importlib.import_module(name)
+        hook = getattr(importlib.import_module(name), "warm_up", None)
+        if callable(hook):  # e.g. ird_core.mdp.warm_up: load the compiled passes now
+            hook()
     return 0
 
 
@@ -175,8 +177,9 @@ class WorkerPool:
     """A ``ProcessPoolExecutor`` (spawn start method) whose results rclpy coroutines can await.
 
     ``max_workers`` computations run at once; further submissions queue in FIFO order.
-    ``warm_modules`` are imported in every worker at start-up (the constructor waits for it) so
-    the first request does not pay for the process start and the imports. A worker that dies
+    ``warm_modules`` are imported in every worker at start-up (the constructor waits for it), and
+    their ``warm_up()`` called if they have one, so the first request does not pay for the
+    process start, the imports or loading the compiled MDP passes (``ird_core.mdp.warm_up``). A worker that dies
     (``BrokenProcessPool``) is replaced on the next submit. ``memory_limit`` (bytes, 0 = none)
     caps each worker's address space (``RLIMIT_AS``): a job that would exceed it gets
     ``MemoryError``.

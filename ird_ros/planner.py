@@ -183,7 +183,7 @@ class PlannerNode(Node):
         self.max_plan_work, self.max_map_values = p["max_plan_work"], p["max_map_values"]
         # Trajectory plans (seconds, up to time_limit) get their own worker: a long one never
         # delays a literal or per_step plan (milliseconds), which queue on the other.
-        pool = dict(warm_modules=("ird_core.planning", "ird_core.inference"),
+        pool = dict(warm_modules=("ird_core.planning", "ird_core.inference", "ird_core.mdp"),
                     memory_limit=p["worker_memory_mb"] * 2**20, logger=self.get_logger())
         self._offloads = {"dp": Offload("planning", p["max_pending"], **pool),
                           "trajectory": Offload("planning", p["max_pending"], **pool)}

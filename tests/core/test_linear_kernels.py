@@ -6,6 +6,9 @@ seeded posterior. Also ``likelihoods.logsumexp_rows`` against scipy and the work
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from collections import OrderedDict
 
 import numpy as np
@@ -136,3 +139,26 @@ def test_work_arrays_are_dropped_least_recently_used_first(monkeypatch: pytest.M
     linear_passes._work("d", 10, linear_passes._layout(4, 3, 3))  # over the budget: drops "b" only
     assert linear_passes._work("a", 10, linear_passes._layout(4, 3, 3)) is first
     assert linear_passes._work("b", 10, linear_passes._layout(4, 3, 3)) is not second
+
+
+def test_warm_up_loads_every_kernel_signature_a_real_pass_uses() -> None:
+    """After ``mdp.warm_up()`` a sampler-sized pass compiles nothing new: the worker pools call it
+    at start-up so that a node's first request does not pay for numba. In a fresh process, since
+    this one has compiled the kernels already."""
+    script = (
+        "import numpy as np\n"
+        "from ird_core import linear_kernels, mdp\n"
+        "mdp.warm_up()\n"
+        "counts = lambda: [len(k.signatures) for k in linear_kernels.compiled()]\n"
+        "before = counts()\n"
+        "grid = mdp.GridMDP(np.random.default_rng(0).standard_normal((15, 15, 50)), (3, 4), 30)\n"
+        "w = np.random.default_rng(1).standard_normal((8, 50)) * 0.3\n"
+        "mdp.log_partition_and_feature_expectations(grid, w)\n"
+        "mdp.log_partition(grid, w)\n"
+        "print(before, counts())\n")
+    env = {**os.environ, "IRD_ENGINE": "numba"}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    before, after = out.stdout.strip().split("] [")
+    assert "0" not in before.strip("[").split(", "), out.stdout
+    assert before.strip("[") == after.strip("]"), out.stdout

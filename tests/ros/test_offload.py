@@ -150,3 +150,24 @@ def test_real_worker_pool(real: tuple[Offload, Any, Any]) -> None:
     assert isinstance(died, OffloadError) and str(died).startswith("internal error: the worker process died")
     assert _run(real, abs, -5) == 5  # a new worker took over
     assert real[0].pending == 0
+
+
+def test_warm_modules_warm_up_hook_loads_the_compiled_passes_before_any_request() -> None:
+    """A warm module's ``warm_up()`` runs in every worker at start-up: with ``ird_core.mdp`` the
+    compiled MDP kernels are loaded before the first job (a fresh worker that had only imported
+    the module would report kernels without any compiled signature)."""
+    from ird_core import linear_kernels
+    from ird_ros.node_main import WorkerPool
+
+    if not linear_kernels.available():
+        pytest.skip("numba is pinned in requirements.txt")
+    probe = ("[len(k.signatures) for k in __import__('ird_core.linear_kernels', fromlist=['compiled'])"
+             ".compiled()]")
+    warm = WorkerPool(1, warm_modules=("ird_core.mdp",))
+    cold = WorkerPool(1, warm_modules=("ird_core.linear_kernels",))  # no warm_up hook
+    try:
+        assert all(n >= 1 for n in warm.submit_concurrent(eval, probe).result(timeout=120))
+        assert cold.submit_concurrent(eval, probe).result(timeout=120) == [0, 0, 0]
+    finally:
+        warm.shutdown()
+        cold.shutdown()
