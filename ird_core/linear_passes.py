@@ -50,6 +50,7 @@ if TYPE_CHECKING:
 
 #: Relative error allowed from subnormal underflow before an element is recomputed exactly.
 _RELATIVE_TOLERANCE = 1e-13
+#: Its log, computed once: the flags compare against it twice per pass.
 _LOG_RELATIVE_TOLERANCE = float(np.log(_RELATIVE_TOLERANCE))
 #: Backward steps between rescalings; ``5^{256} < 1e180`` so values cannot overflow in between.
 _RESCALE_EVERY = 256

@@ -179,10 +179,10 @@ class WorkerPool:
     ``max_workers`` computations run at once; further submissions queue in FIFO order.
     ``warm_modules`` are imported in every worker at start-up (the constructor waits for it), and
     their ``warm_up()`` called if they have one, so the first request does not pay for the
-    process start, the imports or loading the compiled MDP passes (``ird_core.mdp.warm_up``). A worker that dies
-    (``BrokenProcessPool``) is replaced on the next submit. ``memory_limit`` (bytes, 0 = none)
-    caps each worker's address space (``RLIMIT_AS``): a job that would exceed it gets
-    ``MemoryError``.
+    process start, the imports or loading the compiled MDP passes (``ird_core.mdp.warm_up``).
+    A worker that dies (``BrokenProcessPool``) is replaced on the next submit. ``memory_limit``
+    (bytes, 0 = none) caps each worker's address space (``RLIMIT_AS``): a job that would exceed
+    it gets ``MemoryError``.
     """
 
     def __init__(self, max_workers: int = 1, warm_modules: Sequence[str] = (), memory_limit: int = 0) -> None:
