@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ird_core.likelihoods import METHODS
+from ird_core.vocabulary import METHODS
 
 __all__ = ["MAX_ABS_WEIGHT", "MAX_ABS_FEATURE", "BETA_RANGE", "PRIOR_SIGMA_RANGE", "RANGES", "check_int",
            "check_real", "check_array", "check_magnitude", "check_posterior_arguments"]

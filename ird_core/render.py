@@ -3,7 +3,7 @@
 Row 0 is drawn at the bottom (``origin="lower"``), like ``nav_msgs/OccupancyGrid``: x is the
 column, y the row. Colours follow the paper's figures: target yellow, dirt brown, grass green,
 lava red; gold (pot_of_gold only) is orange, apart from the target's yellow
-(:data:`TERRAIN_COLORS`, indexed by :class:`ird_core.terrain.Terrain`). The legend lists the
+(:data:`TERRAIN_COLORS`, indexed by :class:`ird_core.worlds.terrain.Terrain`). The legend lists the
 terrains present on the map.
 
 Figures are built on ``matplotlib.figure.Figure`` with an explicit Agg canvas, never
@@ -25,7 +25,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from ird_core.terrain import NUM_TERRAINS, TERRAIN_NAMES
+from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES
 
 __all__ = [
     "TERRAIN_COLORS",

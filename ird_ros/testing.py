@@ -5,7 +5,7 @@ Typical use (see ``tests/conftest.py`` for the fixtures built on this)::
     lease = lease_domain()                      # exclusive ROS_DOMAIN_ID in 0..101
     with ros_context(lease) as ctx:             # rclpy context in that domain
         node = rclpy.create_node("probe", context=ctx)
-        with spawn_node_process(["-m", "ird_ros.world"], domain=lease) as proc:
+        with spawn_node_process(["-m", "ird_ros.nodes.world"], domain=lease) as proc:
             client = node.create_client(GenerateWorld, "/world/generate")
             wait_for_service(node, client, timeout=20.0, processes=[proc])
             response = call_service(node, client, GenerateWorld.Request(...), timeout=20.0)
@@ -14,7 +14,7 @@ Nothing here sleeps: every wait spins the test's node until a condition holds or
 passes, and then raises ``TimeoutError`` that includes the output of the helper processes.
 
 The domain helpers (``lease_domain``, ``DomainLease``, ``ros_env``, ``ros_context``) live in
-``ird_ros.domains`` and the waits (``spin_until``, ``call_service``, ...) in ``ird_ros.waits``,
+``ird_ros.graph.domains`` and the waits (``spin_until``, ``call_service``, ...) in ``ird_ros.client.waits``,
 where the launcher and the scripts use them; they are re-exported here. This module adds the
 helper processes (``NodeProcess``, ``spawn_node_process``, ``running_nodes``) and is for tests
 only.
@@ -37,16 +37,7 @@ import time
 from pathlib import Path
 from typing import Iterator, Mapping, Sequence
 
-from ird_ros.domains import (
-    DOMAIN_ID_MAX,
-    DOMAIN_LOCK_DIR,
-    DomainLease,
-    lease_domain,
-    ros_context,
-    ros_env,
-)
-from ird_ros.supervisor import child_preexec
-from ird_ros.waits import (
+from ird_ros.client.waits import (
     call_service,
     receive_messages,
     spin_until,
@@ -55,6 +46,15 @@ from ird_ros.waits import (
     wait_for_service,
     wait_for_subscribers,
 )
+from ird_ros.graph.domains import (
+    DOMAIN_ID_MAX,
+    DOMAIN_LOCK_DIR,
+    DomainLease,
+    lease_domain,
+    ros_context,
+    ros_env,
+)
+from ird_ros.launch.supervisor import child_preexec
 
 __all__ = [
     "running_nodes",
@@ -197,7 +197,7 @@ def spawn_node_process(
 ) -> NodeProcess:
     """Start ``python argv...`` (this interpreter by default) in ``domain``.
 
-    ``argv`` are the interpreter's arguments, e.g. ``["-m", "ird_ros.world",
+    ``argv`` are the interpreter's arguments, e.g. ``["-m", "ird_ros.nodes.world",
     "--ros-args", "--params-file", "msgs_config/params/graph.yaml"]`` or ``[script, ...]``.
     The environment is ``env`` (default ``os.environ``) with ROS_DOMAIN_ID,
     loopback-only DDS (``domains.dds_env``) and ROS_LOG_DIR set for the domain.

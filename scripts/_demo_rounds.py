@@ -21,7 +21,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ird_core.render import TERRAIN_COLORS, draw_path, draw_terrain
-from ird_core.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
+from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
 
 __all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "save_rounds_figure",
            "PANEL_INCHES"]

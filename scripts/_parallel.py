@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_trial_arguments(parser: argparse.ArgumentParser, defaults: Any) -> None:
     """The map and sampler flags both experiment scripts share, defaulting to ``defaults``'
-    fields (an ``ird_core.experiments.TrialSpec`` or ``ird_core.active.ActiveSpec``)."""
+    fields (an ``ird_core.experiments.TrialSpec`` or ``ird_core.experiments.active.ActiveSpec``)."""
     for flag, kind in (("size", int), ("horizon", int), ("obs_dim", int), ("num_samples", int),
                        ("beta", float), ("prior_sigma", float), ("num_chains", int), ("warmup", int),
                        ("thin", int), ("max_leapfrog", int)):

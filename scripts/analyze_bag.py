@@ -3,7 +3,7 @@
 
     python scripts/analyze_bag.py BAG [--out DIR] [--json FILE] [--msg-root DIR ...]
 
-BAG is a rosbag2 folder (MCAP or SQLite storage) as written by ``ird_ros.recorder``
+BAG is a rosbag2 folder (MCAP or SQLite storage) as written by ``ird_ros.nodes.recorder``
 (``scripts/launch_graph.py --record BAG``). Only the ``rosbags`` library is needed (plus
 numpy and matplotlib for the plots): the ``ird_msgs`` types are read from the repository's
 ``msgs_config/ird_msgs/msg/*.msg`` (``--msg-root`` adds other folders of ``<pkg>/msg/*.msg``).
@@ -32,9 +32,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from ird_ros.bag_io import REPO_MSG_ROOT, make_typestore  # noqa: E402
-from ird_ros.bag_reader import analyze  # noqa: E402
-from ird_ros.query_rounds import rounds_table  # noqa: E402
+from ird_ros.bags.analysis import analyze  # noqa: E402
+from ird_ros.bags.rounds import rounds_table  # noqa: E402
+from ird_ros.bags.storage import REPO_MSG_ROOT, make_typestore  # noqa: E402
 
 
 def _fmt(value: float | None, spec: str = ".3f") -> str:

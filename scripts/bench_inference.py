@@ -32,18 +32,17 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-
-from ird_core import inference, lavaland  # noqa: E402
-from ird_core.sampler import RunUntil  # noqa: E402
-
 from _progress import step_progress  # noqa: E402  (scripts/_progress.py)
 
+from ird_core import posterior
+from ird_core.posterior.sampler import RunUntil  # noqa: E402
+from ird_core.worlds import lavaland  # noqa: E402
 
 #: Wall-time target for one posterior on this 2-core machine, as stated in the README's benchmarks.
 TARGET_SECONDS = 10.0
 
 
-def naive_seconds_per_weight(model: inference.PosteriorModel, weights: np.ndarray, kernel: str) -> float:
+def naive_seconds_per_weight(model: posterior.PosteriorModel, weights: np.ndarray, kernel: str) -> float:
     """Seconds per weight of the sampler's evaluation done one ``(1, d)`` weight per call."""
     start = time.process_time()
     for w in weights:
@@ -57,15 +56,15 @@ def naive_seconds_per_weight(model: inference.PosteriorModel, weights: np.ndarra
 def proxy_study(instance: lavaland.LavalandInstance, beta: float, seed: int) -> None:
     """How Sample-Z log-posterior differences between posterior-typical weights move with N."""
     mdp = lavaland.train_mdp(instance)
-    draws = inference.sample_posterior(instance.proxy_weights, mdp, beta, "maxent_z", 256, seed).samples
-    reference = inference.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z",
+    draws = posterior.sample_posterior(instance.proxy_weights, mdp, beta, "maxent_z", 256, seed).samples
+    reference = posterior.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z",
                                         seed=seed + 1, num_proxy_samples=6400)
     reference = reference - reference.mean()
     print(f"Sample-Z log-posterior differences between 256 MaxEnt-Z posterior draws vs N = 6400 proxies "
           f"(beta {beta:g}):")
     print(f"{'N':>6} {'rms error (nats)':>17} {'sd of differences':>18}")
     for n in (25, 50, 100, 200, 400, 800, 1600):
-        values = inference.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z", seed=seed + 1,
+        values = posterior.log_posterior(draws, instance.proxy_weights, mdp, beta, "sample_z", seed=seed + 1,
                                          num_proxy_samples=n)
         values = values - values.mean()
         print(f"{n:>6} {np.sqrt(np.mean((values - reference) ** 2)):>17.3f} {reference.std():>18.3f}")
@@ -110,7 +109,8 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
     import warnings
     from unittest import mock
 
-    from ird_core import experiments, laplace
+    from ird_core import experiments
+    from ird_core.posterior import laplace
 
     print(f"levers at beta {beta:g}, {samples} samples, Sample-Z with 100 proxies (and in d = 50 the HMC settings "
           f"used with them) up to the '1000 proxies' levers, seeds 0-{seeds - 1}:")
@@ -138,7 +138,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
                 with mock.patch.object(laplace, "_NEWTON_STALL", stall), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # the table reports R-hat
                     cpu = time.process_time()
-                    post = inference.sample_joint_posterior(obs, beta, method, samples, seed, **settings.options())
+                    post = posterior.sample_joint_posterior(obs, beta, method, samples, seed, **settings.options())
                     rows.append((post.r_hat_max, time.process_time() - cpu, post.ess_min))
             r_hat, cpu, ess = (np.array(v) for v in zip(*rows))
             rate = float(np.mean(ess) / np.mean(cpu))
@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--samples", type=int, default=1000)
     parser.add_argument("--size", type=int, default=15)
     parser.add_argument("--horizon", type=int, default=30)
-    parser.add_argument("--methods", nargs="+", default=list(inference.METHODS), choices=inference.METHODS)
+    parser.add_argument("--methods", nargs="+", default=list(posterior.METHODS), choices=posterior.METHODS)
     parser.add_argument("--naive-calls", type=int, default=200)
     parser.add_argument("--full-naive", action="store_true")
     parser.add_argument("--proxy-study", action="store_true")
@@ -184,10 +184,10 @@ def main(argv: list[str] | None = None) -> int:
     for method in args.methods:
         start, cpu_start = time.perf_counter(), time.process_time()
         with step_progress(f"{method} MCMC") as progress:
-            post = inference.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples,
+            post = posterior.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples,
                                               args.seed, warmup=args.warmup, progress=progress)
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
-        model = inference.make_posterior_model(instance.proxy_weights, mdp, args.beta, method, seed=args.seed)
+        model = posterior.make_posterior_model(instance.proxy_weights, mdp, args.beta, method, seed=args.seed)
         per_call = post.num_chains * (2 if method == "sample_z" and post.kernel != "rwm" else 1)
         weight_evals = post.num_evaluations * per_call
         pool = post.samples[np.linspace(0, len(post.samples) - 1, min(args.naive_calls, len(post.samples))).astype(int)]
@@ -199,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     for method in [] if args.skip_run_until else args.methods:
         start, cpu_start = time.perf_counter(), time.process_time()
         with step_progress(f"{method} MCMC until converged") as progress:
-            post = inference.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples,
+            post = posterior.sample_posterior(instance.proxy_weights, mdp, args.beta, method, args.samples,
                                               args.seed, warmup=args.warmup, until_converged=RunUntil(),
                                               progress=progress)
         until_rows.append((method, time.perf_counter() - start, time.process_time() - cpu_start, post))
@@ -208,8 +208,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'method':<9} {'kernel':<6} {'wall s':>7} {'CPU s':>6} {'calls':>6} {'weight evals':>12} {'accept':>6} {'R-hat':>6} "
           f"{'ESS':>6} {'step':>6} {'L':>3} {'chains':>6} {'warmup':>6} {'thin':>4} {'naive CPU s':>11} {'speed-up':>8}")
     for method, seconds, cpu, post, weight_evals, naive in rows:
-        steps = max(1, int(np.clip(round(inference.DEFAULT_TRAJECTORY_LENGTH / post.step_size), 1,
-                                   inference.DEFAULT_MAX_LEAPFROG[method]))) if post.kernel == "hmc" else 1
+        steps = max(1, int(np.clip(round(posterior.DEFAULT_TRAJECTORY_LENGTH / post.step_size), 1,
+                                   posterior.DEFAULT_MAX_LEAPFROG[method]))) if post.kernel == "hmc" else 1
         print(f"{method:<9} {post.kernel:<6} {seconds:>7.1f} {cpu:>6.1f} {post.num_evaluations:>6d} {weight_evals:>12d} "
               f"{post.acceptance_rate:>6.2f} {post.r_hat_max:>6.3f} {post.ess_min:>6.0f} {post.step_size:>6.3f} "
               f"{steps:>3d} {post.num_chains:>6d} {post.warmup:>6d} {post.thin:>4d} {naive:>11.1f} "

@@ -5,7 +5,7 @@ The reference is what a textbook MaxEnt IRL implementation does: a dense (S, A, 
 tensor, soft value iteration and a forward pass per weight vector, in a Python loop over weights.
 Both are exact; the script checks they agree, then prints a table. A second table times the
 two engines of the linear-space passes (``IRD_ENGINE=numpy``: the numpy loops; ``numba``: the
-compiled loops of ``ird_core.linear_kernels``) at the sampler's batch sizes on the experiments'
+compiled loops of ``ird_core.mdp.linear_kernels``) at the sampler's batch sizes on the experiments'
 map (15x15, T = 30, d = 50), checks that they agree bit for bit, and prints the ratio.
 
     python scripts/bench_mdp.py [--size 20] [--horizon 40] [--batch 256] [--dim 50]
@@ -20,9 +20,17 @@ import time
 import numpy as np
 from scipy.special import logsumexp
 
-from ird_core import linear_kernels
-from ird_core.mdp import (MOVES, GridMDP, _log_visitation_exact, cell_rewards, feature_expectations, log_partition,
-                          log_partition_and_feature_expectations, successor_table)
+from ird_core.mdp import (
+    MOVES,
+    GridMDP,
+    cell_rewards,
+    feature_expectations,
+    linear_kernels,
+    log_partition,
+    log_partition_and_feature_expectations,
+    successor_table,
+)
+from ird_core.mdp.passes import _log_visitation_exact
 
 
 def dense_transitions(height: int, width: int) -> np.ndarray:

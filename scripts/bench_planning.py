@@ -30,8 +30,8 @@ import scipy.sparse as sp
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ird_core import planning
-from ird_core.enumeration import all_trajectories, trajectory_features
 from ird_core.mdp import GridMDP, optimal_path, successor_table
+from ird_core.mdp.enumeration import all_trajectories, trajectory_features
 
 ROWS: list[tuple] = []
 MISMATCHES: list[str] = []

@@ -3,7 +3,7 @@
 
 A query round = ``queries.propose_query`` (2 options, info_gain) on the test map from the
 posterior's 1000 samples, a simulated designer's answer (Boltzmann on the true returns), and
-``inference.sample_joint_posterior`` re-sampling 1000 draws with the answer added, warm started
+``posterior.sample_joint_posterior`` re-sampling 1000 draws with the answer added, warm started
 from the previous posterior (``initial=``). Target: round <= 1.2 x one cold ``sample_posterior``
 (same proxy, default sampler settings) on a 15x15 map with T = 30.
 
@@ -28,7 +28,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from ird_core import inference, lavaland, queries  # noqa: E402
+from ird_core import posterior
+from ird_core.designer import queries  # noqa: E402
+from ird_core.worlds import lavaland
 
 TARGET_RATIO = 1.2
 
@@ -42,7 +44,7 @@ def timed(fn, *args, **kwargs):
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--condition", default="latent_raw", choices=lavaland.ALL_CONDITIONS)
-    parser.add_argument("--method", default="maxent_z", choices=inference.METHODS)
+    parser.add_argument("--method", default="maxent_z", choices=posterior.METHODS)
     parser.add_argument("--seed", type=int, default=0, help="Lavaland instance seed")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--samples", type=int, default=1000)
@@ -59,25 +61,25 @@ def main() -> int:
     proxy_features = lavaland.proxy_feature_expectations(inst)
     extra: dict = {}
     if args.method == "sample_z":  # the phi_i once, outside the timings of both (as a node would cache them)
-        extra["proxy_sample_features"] = lavaland.proxy_prior_features(inst, inference.DEFAULT_NUM_PROXY_SAMPLES,
+        extra["proxy_sample_features"] = lavaland.proxy_prior_features(inst, posterior.DEFAULT_NUM_PROXY_SAMPLES,
                                                                        args.seed)
-    proxy = inference.ProxyObservation(inst.proxy_weights, train, proxy_features, extra.get("proxy_sample_features"))
+    proxy = posterior.ProxyObservation(inst.proxy_weights, train, proxy_features, extra.get("proxy_sample_features"))
 
     rows = []
     warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is printed instead
     for r in range(args.repeats):
-        cold, cold_wall, cold_cpu = timed(inference.sample_posterior, inst.proxy_weights, train, args.beta,
+        cold, cold_wall, cold_cpu = timed(posterior.sample_posterior, inst.proxy_weights, train, args.beta,
                                           args.method, args.samples, r, proxy_features=proxy_features, **extra)
         query, propose_wall, propose_cpu = timed(queries.propose_query, test, cold.samples, args.answer_beta)
         returns = np.array([lavaland.true_return(inst.test_labels, cells) for cells in query.option_cells])
         chosen = queries.simulated_answer(returns, args.answer_beta, np.random.default_rng(r))
-        evidence = [proxy, inference.ChoiceObservation(query.option_features, chosen, args.answer_beta)]
-        warm, warm_wall, warm_cpu = timed(inference.sample_joint_posterior, evidence, args.beta, args.method,
+        evidence = [proxy, posterior.ChoiceObservation(query.option_features, chosen, args.answer_beta)]
+        warm, warm_wall, warm_cpu = timed(posterior.sample_joint_posterior, evidence, args.beta, args.method,
                                           args.samples, 1000 + r, initial=cold)
         row = dict(cold=cold, cold_wall=cold_wall, cold_cpu=cold_cpu, query=query, propose_wall=propose_wall,
                    propose_cpu=propose_cpu, warm=warm, warm_wall=warm_wall, warm_cpu=warm_cpu)
         if args.cold_resample:
-            again, row["again_wall"], _ = timed(inference.sample_joint_posterior, evidence, args.beta, args.method,
+            again, row["again_wall"], _ = timed(posterior.sample_joint_posterior, evidence, args.beta, args.method,
                                                 args.samples, 1000 + r)
             row["again"] = again
         rows.append(row)
@@ -112,8 +114,8 @@ def main() -> int:
     print(f"ratio round / sample_posterior: CPU {ratio_cpu:.2f} (target <= {TARGET_RATIO}: "
           f"{'met' if ratio_cpu <= TARGET_RATIO else 'MISSED'}); wall {ratio_wall:.2f} (median of back-to-back "
           f"pairs); sampler calls warm / cold {ratio_calls:.2f}")
-    print(f"warm-started R-hat: max {worst:.3f} (<= {inference.R_HAT_CONVERGED}: "
-          f"{'holds' if worst <= inference.R_HAT_CONVERGED else 'FAILS'})")
+    print(f"warm-started R-hat: max {worst:.3f} (<= {posterior.R_HAT_CONVERGED}: "
+          f"{'holds' if worst <= posterior.R_HAT_CONVERGED else 'FAILS'})")
     print("CPU time decides: other jobs on a shared machine inflate wall time (single-threaded BLAS here).")
     print("calls: batched log-density(+gradient) calls of the sampler (warm-up included).")
     return 0

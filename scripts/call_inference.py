@@ -21,13 +21,14 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 
-from ird_core.inference import METHODS
+from ird_core.posterior import METHODS
 from ird_msgs.srv import InferReward
-from ird_ros import conversions, names
-from ird_ros.domains import dds_process_env
-from ird_ros.offload import service_qos
-from ird_ros.waits import spin_until
-from ird_ros.world import TOPIC_INFER_REQUEST
+from ird_ros import conversions
+from ird_ros.client.waits import spin_until
+from ird_ros.graph import names
+from ird_ros.graph.domains import dds_process_env
+from ird_ros.nodes.world import TOPIC_INFER_REQUEST
+from ird_ros.runtime.offload import service_qos
 
 
 def generated_request(seed: int) -> InferReward.Request:

@@ -29,7 +29,7 @@ graph cleanly (the bag is closed) at any point.
     bash scripts/demo.sh --queries 3 [--condition pot_of_gold] [--designer web]
     bash scripts/demo.sh --world worlds/figure1.yaml [--queries 2]
 
-With ``--world FILE`` the graph runs the world file (``ird_core.world_file``) instead of a
+With ``--world FILE`` the graph runs the world file (``ird_core.worlds.world_file``) instead of a
 generated Lavaland: the world node and perception load it, ``/ird/infer`` gets every training
 world of the file (the world's ``/world/infer_request``), ``--condition`` is unused and
 ``--seed`` seeds the sampler and the designer only; the survey then repeats the mission's
@@ -54,11 +54,6 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from ird_core import inference, lavaland  # noqa: E402
-from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, QUICK, TrialSpec, run_trial, trial_instance  # noqa: E402
-from ird_core.queries import STRATEGIES  # noqa: E402
-from ird_core.render import save_mission_figure  # noqa: E402
-
 from _demo_rounds import (  # noqa: E402
     Outcome,
     RoundResult,
@@ -67,6 +62,12 @@ from _demo_rounds import (  # noqa: E402
     save_rounds_figure,
     terrain_counts,
 )
+
+from ird_core import posterior
+from ird_core.designer.queries import STRATEGIES  # noqa: E402
+from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, QUICK, TrialSpec, run_trial, trial_instance  # noqa: E402
+from ird_core.render import save_mission_figure  # noqa: E402
+from ird_core.worlds import lavaland  # noqa: E402
 
 #: The demo's default seed: the first one, and (with the default settings) one of the 5 of seeds
 #: 0-19 on which the literal plan walks into lava, the failure the paper is about. The demo
@@ -87,7 +88,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--world", type=Path, default=None, metavar="FILE",
                    help="a world file (worlds/*.yaml) instead of a generated Lavaland")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help="world seed (maps, proxy; also the designer's)")
-    p.add_argument("--method", default="maxent_z", choices=inference.METHODS)
+    p.add_argument("--method", default="maxent_z", choices=posterior.METHODS)
     p.add_argument("--beta", type=float, default=None, help="designer rationality (default: the experiments')")
     p.add_argument("--num-samples", type=int, default=None, help="posterior samples (default: the experiments')")
     p.add_argument("--rate", type=float, default=10.0, help="Rob's speed, cells per second")
@@ -165,10 +166,10 @@ def main() -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
-    from ird_ros.bag_reader import analyze
-    from ird_ros.domains import ros_context
+    from ird_ros.bags.analysis import analyze
     from ird_ros.graph import DEFAULT_NODES
-    from ird_ros.launcher import GraphLauncher, LaunchError
+    from ird_ros.graph.domains import ros_context
+    from ird_ros.launch.launcher import GraphLauncher, LaunchError
 
     base = TrialSpec(condition=args.condition, seed=args.seed, **QUICK)  # the demo world: the small setting
     beta = args.beta if args.beta is not None else base.beta
@@ -178,7 +179,7 @@ def main() -> int:
                                factorial=False)
     scene = args.condition
     if args.world is not None:
-        from ird_core.world_file import load_world_file
+        from ird_core.worlds.world_file import load_world_file
 
         try:
             scene = load_world_file(args.world).name
@@ -282,12 +283,12 @@ class MissionClient:
     """The demo's client of the graph: Rob's status, the world's proxy and test map, the planner."""
 
     def __init__(self, node, test_labels: np.ndarray) -> None:
-        from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
-        from ird_msgs.srv import PlanPath
         from nav_msgs.msg import OccupancyGrid
 
-        from ird_ros import names
-        from ird_ros.waits import receive_messages, wait_for_publishers
+        from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
+        from ird_msgs.srv import PlanPath
+        from ird_ros.client.waits import receive_messages, wait_for_publishers
+        from ird_ros.graph import names
 
         self.node, self.test_labels = node, test_labels
         # Rob's status is a volatile stream: subscribe and wait for the match before any plan exists.
@@ -304,8 +305,7 @@ class MissionClient:
     def drive(self, label: str, mode: str, baseline: str, weights: list[float]) -> Outcome:
         """``/ird/plan`` (empty weights: the world's proxy for literal), then wait for Rob to finish it."""
         from ird_msgs.srv import PlanPath
-
-        from ird_ros.waits import call_service, spin_until
+        from ird_ros.client.waits import call_service, spin_until
 
         req = PlanPath.Request()  # map empty = the latest perceived test map
         proxy = self.proxy
@@ -330,7 +330,7 @@ class MissionClient:
     def latest_risk(self, after: int = 0, timeout: float = 30.0) -> np.ndarray:
         """The latest /ird/risk_map once more than ``after`` were received."""
         from ird_ros import conversions as conv
-        from ird_ros.waits import spin_until
+        from ird_ros.client.waits import spin_until
 
         spin_until(self.node, lambda: len(self.risk_msgs) > after, timeout=timeout, what="a new risk map on /ird/risk_map")
         return conv.occupancy_grid_from_msg(self.risk_msgs[-1])
@@ -340,10 +340,9 @@ def run_mission(node, args: argparse.Namespace, spec: TrialSpec, test_labels: np
     """The client side of the mission: infer, plan twice, watch Rob; then the rounds of questions."""
     from ird_msgs.msg import FeatureGrid
     from ird_msgs.srv import InferReward
-
-    from ird_ros import names
-    from ird_ros.waits import call_service, receive_messages
-    from ird_ros.world import TOPIC_INFER_REQUEST
+    from ird_ros.client.waits import call_service, receive_messages
+    from ird_ros.graph import names
+    from ird_ros.nodes.world import TOPIC_INFER_REQUEST
 
     client = MissionClient(node, test_labels)
     proxy = client.proxy
@@ -381,10 +380,9 @@ def run_rounds(client: MissionClient, args: argparse.Namespace, results: Results
     re-sampled posterior, the planner's new risk map, a new IRD plan that Rob drives."""
     from ird_msgs.msg import QueryRecord, RewardPosterior
     from ird_msgs.srv import ProposeQuery
-
     from ird_ros import conversions as conv
-    from ird_ros import names
-    from ird_ros.waits import call_service, spin_until
+    from ird_ros.client.waits import call_service, spin_until
+    from ird_ros.graph import names
 
     node, proxy = client.node, client.proxy
     grid = conv.feature_grid_from_msg(client.test, field=names.TOPIC_TEST_FEATURES)

@@ -6,14 +6,14 @@
 
 Loading the file gives the same maps, features, proxy, posterior (same sampler seed) and plans
 (latent conditions store the Lavaland seed that regenerates the observation model, classifier
-and observation draws; see ird_core.world_file).
+and observation draws; see ird_core.worlds.world_file).
 """
 
 from __future__ import annotations
 
 import argparse
 
-from ird_core import lavaland, world_file
+from ird_core.worlds import lavaland, world_file
 
 
 def main(argv: list[str] | None = None) -> None:

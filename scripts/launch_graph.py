@@ -46,8 +46,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from ird_ros.domains import DDS_NETWORK_VAR  # noqa: E402
-from ird_ros.launcher import GraphLauncher, LaunchError, graph_specs  # noqa: E402
+from ird_ros.graph.domains import DDS_NETWORK_VAR  # noqa: E402
+from ird_ros.launch.launcher import GraphLauncher, LaunchError, graph_specs  # noqa: E402
 
 
 class _StopRequested(BaseException):
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dds-network", action="store_true",
                         help="DDS on every interface, for multi-machine use (default: loopback only)")
     parser.add_argument("--node-table", default=None, metavar="MODULE:ATTR",
-                        help="another node table (a list of ird_ros.launcher.LaunchSpec), e.g. for tests' stand-ins")
+                        help="another node table (a list of ird_ros.launch.launcher.LaunchSpec), e.g. for tests' stand-ins")
     args = parser.parse_args(argv)
 
     # Ctrl-C / SIGTERM: stop the graph. Restore SIGINT explicitly: a launcher started with `&`
@@ -106,8 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         module, _, attr = args.node_table.partition(":")
         specs = getattr(importlib.import_module(module), attr or "SPECS")
     if args.world is not None:
-        from ird_core.world_file import load_world_file
-        from ird_ros.world import with_world_file
+        from ird_core.worlds.world_file import load_world_file
+        from ird_ros.nodes.world import with_world_file
 
         try:
             load_world_file(args.world)

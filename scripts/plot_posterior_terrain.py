@@ -28,11 +28,11 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-
-from ird_core import inference, lavaland  # noqa: E402
-from ird_core.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
-
 from _progress import step_progress  # noqa: E402  (scripts/_progress.py)
+
+from ird_core import posterior
+from ird_core.worlds import lavaland  # noqa: E402
+from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
 
 
 def observed_terrains(instance: lavaland.LavalandInstance) -> list[Terrain]:
@@ -79,15 +79,15 @@ def main(argv: list[str] | None = None) -> int:
     instance = lavaland.make_instance("latent_raw", args.seed)
     start = time.perf_counter()
     with step_progress("maxent_z MCMC") as progress:
-        posterior = inference.sample_posterior(
+        result = posterior.sample_posterior(
             instance.proxy_weights, lavaland.train_mdp(instance), args.beta, "maxent_z", args.samples, args.seed,
             proxy_features=lavaland.proxy_feature_expectations(instance), progress=progress)
     elapsed = time.perf_counter() - start
-    print(f"latent_raw seed {args.seed}, MaxEnt-Z, beta {args.beta:g}: {posterior.num_samples} samples in "
-          f"{elapsed:.1f} s; acceptance {posterior.acceptance_rate:.2f}, R-hat {posterior.r_hat_max:.3f}, "
-          f"ESS {posterior.ess_min:.0f}")
+    print(f"latent_raw seed {args.seed}, MaxEnt-Z, beta {args.beta:g}: {result.num_samples} samples in "
+          f"{elapsed:.1f} s; acceptance {result.acceptance_rate:.2f}, R-hat {result.r_hat_max:.3f}, "
+          f"ESS {result.ess_min:.0f}")
 
-    spreads = terrain_spreads(posterior.samples, instance)
+    spreads = terrain_spreads(result.samples, instance)
     print(f"{'terrain':<8} {'E[w.mu_t]':>10} {'sd(w.mu_t)':>11} {'mean per-cell sd (test map)':>28}")
     for name, row in spreads.items():
         print(f"{name:<8} {row['mean_reward']:>10.3f} {row['sd_of_mean_reward']:>11.3f} {row['cell_sd']:>28.3f}")
@@ -97,8 +97,8 @@ def main(argv: list[str] | None = None) -> int:
         ratio = spreads[lava][key] / max(spreads[name][key] for name in safe)
         print(f"lava / largest safe {label}: {ratio:.1f}x")
 
-    rewards = posterior.samples @ instance.observation_model.means.T
-    cell = np.std(np.einsum("kd,hwd->khw", posterior.samples, instance.test_features, optimize=True), axis=0)
+    rewards = result.samples @ instance.observation_model.means.T
+    cell = np.std(np.einsum("kd,hwd->khw", result.samples, instance.test_features, optimize=True), axis=0)
     terrains = observed_terrains(instance)
     names = [TERRAIN_NAMES[t] for t in terrains]
     colours = ["#b08850", "#4c9a2a", "#2a6fdb", "#d8431c"]
@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         for patch, colour in zip(b["boxes"], colours):
             patch.set_facecolor(colour)
             patch.set_alpha(0.7)
-    fig.suptitle(f"IRD posterior (MaxEnt-Z, beta={args.beta:g}, {posterior.num_samples} samples), latent_raw "
+    fig.suptitle(f"IRD posterior (MaxEnt-Z, beta={args.beta:g}, {result.num_samples} samples), latent_raw "
                  f"seed {args.seed}: lava is uncertain")
     fig.tight_layout()
     out = Path(args.output)

@@ -3,7 +3,7 @@
 
     python scripts/reindex_bag.py BAG [--check] [--force] [--discard-original]
 
-BAG is a rosbag2 folder with one MCAP file, as written by ``ird_ros.recorder`` (or the
+BAG is a rosbag2 folder with one MCAP file, as written by ``ird_ros.nodes.recorder`` (or the
 ``.mcap`` file in it). A bag that was closed properly is left alone. Otherwise every complete
 record of the MCAP is read (up to the first cut-off or damaged one) and the bag is rewritten
 in place: a complete MCAP (chunk indexes, summary, footer) and a ``metadata.yaml`` with the
@@ -25,7 +25,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from ird_ros.bag_repair import bag_state, reindex  # noqa: E402
+from ird_ros.bags.repair import bag_state, reindex  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

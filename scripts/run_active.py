@@ -9,7 +9,7 @@ instance seed S + i in every condition): the literal plan, the oracle plan (opti
 true reward), and the IRD per-step plan (training-features baseline) after 0, 1, 2, 3 and 5
 answered queries (2 options each, on the test map) for info-gain and random query selection,
 the posterior re-sampled (warm start) with all evidence after every answer. The trial logic is
-ird_core.active.run_trial, a pure function of its spec; trials run in a local process pool or on
+ird_core.experiments.active.run_trial, a pure function of its spec; trials run in a local process pool or on
 a Dask cluster (scripts/_parallel.py), so the numbers do not depend on W or the scheduler.
 
 Outputs in --out (default docs/results/active): active.csv (one row per condition x strategy x
@@ -27,8 +27,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/_parallel.py
 
-import _parallel  # noqa: E402  (first: one BLAS thread per worker, before numpy loads)
-
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import dataclasses  # noqa: E402
@@ -36,11 +34,13 @@ import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 
-from ird_core import active  # noqa: E402
-from ird_core.inference import METHODS  # noqa: E402
-from ird_core.lavaland import ALL_CONDITIONS  # noqa: E402
+import _parallel  # noqa: E402  (first: one BLAS thread per worker, before numpy loads)
+
+from ird_core.experiments import active  # noqa: E402
+from ird_core.posterior import METHODS  # noqa: E402
 from ird_core.render import TERRAIN_COLORS  # noqa: E402
-from ird_core.terrain import Terrain  # noqa: E402
+from ird_core.worlds.lavaland import ALL_CONDITIONS  # noqa: E402
+from ird_core.worlds.terrain import Terrain  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LABEL = {"info_gain": "info-gain queries", "random": "random queries", "literal": "literal", "oracle": "oracle"}

@@ -59,8 +59,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/_parallel.py
 
-import _parallel  # noqa: E402  (first: one BLAS thread per worker, before numpy loads)
-
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import dataclasses  # noqa: E402
@@ -68,8 +66,10 @@ import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 
+import _parallel  # noqa: E402  (first: one BLAS thread per worker, before numpy loads)
+
 from ird_core import experiments as ex  # noqa: E402
-from ird_core.lavaland import CONDITIONS, FILE_CONDITION  # noqa: E402
+from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION  # noqa: E402
 
 ORDER = CONDITIONS + (FILE_CONDITION,)  # tables and figures: the paper's conditions, then a world file
 
@@ -309,11 +309,12 @@ def run_via_ros(args, settings: dict) -> int:
     import numpy as np
     import yaml
 
-    from ird_core import lavaland, planning
+    from ird_core import planning
     from ird_core.mdp import GridMDP
+    from ird_core.worlds import lavaland
     from ird_ros import conversions as conv
-    from ird_ros import names
-    from ird_ros.launcher import GraphLauncher, default_params_file
+    from ird_ros.graph import names
+    from ird_ros.launch.launcher import GraphLauncher, default_params_file
     from ird_ros.testing import call_service, ros_context, spin_until
 
     trials = 3 if args.trials is None else args.trials
@@ -332,6 +333,7 @@ def run_via_ros(args, settings: dict) -> int:
     try:
         graph.wait_ready(120.0)
         import rclpy  # noqa: F401
+
         from ird_msgs.msg import FeatureGrid, ProxyReward
         from ird_msgs.srv import GenerateWorld, InferReward, PlanPath
 
@@ -537,7 +539,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     conditions = list(args.conditions)
     if args.world is not None:
-        from ird_core.world_file import load_world
+        from ird_core.worlds.world_file import load_world
 
         if args.via_ros:
             print("--world: not supported with --via-ros (use launch_graph.py --world FILE)", file=sys.stderr)

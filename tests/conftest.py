@@ -1,6 +1,6 @@
 """Shared pytest set-up: every ROS test talks only inside a private ROS domain.
 
-- The whole session runs with loopback-only DDS (``ird_ros.domains.dds_env``), a private
+- The whole session runs with loopback-only DDS (``ird_ros.graph.domains.dds_env``), a private
   ROS_LOG_DIR, and (if ROS_DOMAIN_ID was not set by scripts/test.sh) a leased domain.
 - ``ros_domain`` (module scope) leases a further domain of its own for each test module
   (see ird_ros.testing.lease_domain) and points ROS_DOMAIN_ID at it while the module runs,
@@ -18,14 +18,14 @@ from typing import Any, Iterator
 
 import pytest
 
-from ird_ros.domains import dds_env
+from ird_ros.graph.domains import dds_env
 from ird_ros.testing import DomainLease, lease_domain, ros_context
 
 _SESSION: dict[str, Any] = {}
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    dds_env(os.environ)  # loopback-only DDS, as every entry point (ird_ros.domains)
+    dds_env(os.environ)  # loopback-only DDS, as every entry point (ird_ros.graph.domains)
     if not os.environ.get("ROS_LOG_DIR"):
         tmp = tempfile.TemporaryDirectory(prefix="ird_pytest_ros_log_")
         _SESSION["log_tmp"] = tmp

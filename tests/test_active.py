@@ -1,4 +1,4 @@
-"""The designer-in-the-loop experiment (ird_core.active, scripts/run_active.py) on tiny maps:
+"""The designer-in-the-loop experiment (ird_core.experiments.active, scripts/run_active.py) on tiny maps:
 outputs and columns, paired determinism, the oracle as a ceiling, the paired statistics."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from ird_core import active, experiments
+from ird_core import experiments
+from ird_core.experiments import active
 
 ROOT = Path(__file__).resolve().parents[1]
 

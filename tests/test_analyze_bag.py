@@ -1,4 +1,4 @@
-"""scripts/analyze_bag.py and ird_ros.bag_reader on a bag written here with rosbags (no ROS).
+"""scripts/analyze_bag.py and ird_ros.bags.analysis on a bag written here with rosbags (no ROS).
 
 The bag holds the project's own types (ird_msgs from msgs_config, nav_msgs) as the recorder
 would write them: ground-truth terrain, a posterior, and three missions (/plan, /odom,
@@ -19,8 +19,8 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys.base import Nodetype
 
-from ird_ros import bag_reader
-from ird_ros.bag_reader import analyze, extract_missions, make_typestore, read_messages, summarize
+from ird_ros.bags import analysis as bag_reader
+from ird_ros.bags.analysis import analyze, extract_missions, make_typestore, read_messages, summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "scripts" / "analyze_bag.py"

@@ -1,4 +1,4 @@
-"""ird_ros.bag_repair without ROS: checkpointed bags open before close(); reindex turns any
+"""ird_ros.bags.repair without ROS: checkpointed bags open before close(); reindex turns any
 prefix of an MCAP file (a killed recorder's, or a cut-off copy of a finished bag) into a bag
 that rosbags and the mcap library read, holding exactly the messages whose records are
 complete in that prefix."""
@@ -16,8 +16,8 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from ird_ros import bag_repair
-from ird_ros.bag_repair import MAGIC, bag_state, checkpoint, close_writer, reindex
+from ird_ros.bags import repair as bag_repair
+from ird_ros.bags.repair import MAGIC, bag_state, checkpoint, close_writer, reindex
 
 ROOT = Path(__file__).resolve().parents[1]
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -229,6 +229,6 @@ def test_cli_checks_and_rebuilds(tmp_path: Path) -> None:
 
 
 def test_repair_module_does_not_import_rclpy() -> None:
-    code = f"import sys; sys.path.insert(0, {str(ROOT)!r}); import ird_ros.bag_repair; print('rclpy' in sys.modules)"
+    code = f"import sys; sys.path.insert(0, {str(ROOT)!r}); import ird_ros.bags.repair; print('rclpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", bag_repair.__name__

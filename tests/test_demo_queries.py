@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from ird_core import lavaland
-from ird_core.terrain import NUM_TERRAINS, Terrain
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import NUM_TERRAINS, Terrain
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,7 +14,7 @@ from typing import Any, Iterator
 import pytest
 import tornado.websocket
 
-from ird_ros.designer_web import WEB_DIR, WebDesigner, is_loopback
+from ird_ros.web.server import WEB_DIR, WebDesigner, is_loopback
 
 WORLD = {"height": 3, "width": 4, "class_names": ["dirt", "grass", "target", "lava"],
          "classes": [[0, 0, 1, 2], [0, 3, 1, 0], [1, 1, 0, 0]], "start": [0, 0], "stamp": 1.0}
@@ -249,7 +249,7 @@ def test_binding_and_arguments(caplog: pytest.LogCaptureFixture) -> None:
     with pytest.raises(ValueError, match="on_answer"):
         WebDesigner("127.0.0.1", 0, None)
     # Loopback: no warning, and the URL names the bound port.
-    with caplog.at_level(logging.WARNING, logger="ird_ros.designer_web"):
+    with caplog.at_level(logging.WARNING, logger="ird_ros.web.server"):
         with WebDesigner("127.0.0.1", 0, lambda q, c: (True, "")) as quiet:
             assert not quiet.url.endswith(":0/")
             assert request(quiet, "/state")[0] == 200
@@ -259,6 +259,6 @@ def test_binding_and_arguments(caplog: pytest.LogCaptureFixture) -> None:
     assert not caplog.records
     # Any other address is allowed but logged as a warning (no authentication on the page);
     # the warning comes with the configuration, so the test never binds a non-loopback address.
-    with caplog.at_level(logging.WARNING, logger="ird_ros.designer_web"):
+    with caplog.at_level(logging.WARNING, logger="ird_ros.web.server"):
         WebDesigner("0.0.0.0", 0, lambda q, c: (True, ""))
     assert any("not loopback" in r.getMessage() for r in caplog.records)

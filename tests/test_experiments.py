@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ird_core import experiments as ex
+from ird_core.experiments import trials as ex
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -228,7 +228,8 @@ def test_factorial_granularities_share_the_first_samples():
     sample set the per-step objective sum_t min_i q_i is at most min_i sum_t q_i on every path,
     so the trajectory optimum is at least the per-step optimum and at least the per-step path's
     trajectory objective; each plan's objective is its objective on exactly those samples."""
-    from ird_core import lavaland, planning
+    from ird_core import planning
+    from ird_core.worlds import lavaland
 
     spec = ex.TrialSpec("latent_raw", 2, **SMALL_MAP)
     inst = ex.trial_instance(spec)
@@ -389,7 +390,7 @@ def test_trajectory_settings_reach_the_sampler(monkeypatch):
         seen.append(kwargs)
         raise RuntimeError("captured")
 
-    monkeypatch.setattr(ex.inference, "sample_joint_posterior", capture)
+    monkeypatch.setattr(ex.posterior, "sample_joint_posterior", capture)
     for settings, want in ((ex.SamplerSettings(4, 10, 1, 8), (None, None)),
                            (ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=64, trajectory_length=3.0), (64, 3.0))):
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=settings))

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ird_core import experiments as ex
-from ird_core import inference, lavaland, world_file
+from ird_core import posterior
+from ird_core.worlds import lavaland, world_file
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = dict(num_samples=16, num_chains=2, warmup=20, thin=1, max_leapfrog=8, num_proxy_samples=20,
@@ -66,7 +67,7 @@ def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> Non
     seed = int(np.random.SeedSequence([5, ex.Z_METHODS.index("maxent_z") + 1]).generate_state(1)[0]) % 2**31
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        joint = inference.sample_joint_posterior(
+        joint = posterior.sample_joint_posterior(
             lavaland.proxy_observations(inst), spec.beta, "maxent_z", spec.num_samples, seed, spec.prior_sigma,
             num_chains=2, warmup=20, thin=1, max_leapfrog=8)
     assert ird.r_hat_max == joint.r_hat_max

@@ -35,16 +35,17 @@ def test_every_parameter_is_commented() -> None:
 
 
 # Deliberate differences between graph.yaml and the nodes' defaults: the recorder's defaults
-# (record every topic, no output folder: refused) suit a bare `python -m ird_ros.recorder -p ...`,
+# (record every topic, no output folder: refused) suit a bare `python -m ird_ros.nodes.recorder -p ...`,
 # the graph records its own topics into a fresh runs/ folder.
 OVERRIDES = {("recorder", "topics"), ("recorder", "output_dir")}
 
 
 def _parameter_tables() -> dict[str, dict[str, Any]]:
-    """{node name: its module's PARAMETERS}: what each node declares (ird_ros.node_params.declare_all)."""
-    from ird_ros import graph, recorder
+    """{node name: its module's PARAMETERS}: what each node declares (ird_ros.runtime.node_params.declare_all)."""
+    from ird_ros import graph
+    from ird_ros.nodes import recorder
 
-    modules = {spec.name: spec.module for spec in graph.NODES} | {recorder.NODE_NAME: "ird_ros.recorder"}
+    modules = {spec.name: spec.module for spec in graph.NODES} | {recorder.NODE_NAME: "ird_ros.nodes.recorder"}
     assert set(modules) == NODES
     return {name: importlib.import_module(module).PARAMETERS for name, module in modules.items()}
 
@@ -55,7 +56,7 @@ def _ros_type(value: Any) -> type:
 
 
 def test_graph_yaml_sets_declared_parameters_with_their_types_and_defaults() -> None:
-    from ird_ros.node_params import Param
+    from ird_ros.runtime.node_params import Param
 
     data = yaml.safe_load(GRAPH.read_text())
     tables = _parameter_tables()

@@ -1,4 +1,4 @@
-"""ird_ros.inference_queries.Evidence (no ROS): when the inference node forgets a world, and how
+"""ird_ros.jobs.inference_queries.Evidence (no ROS): when the inference node forgets a world, and how
 answers are checked before anything changes."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from types import SimpleNamespace as NS
 import numpy as np
 import pytest
 
-from ird_ros.inference_queries import Evidence, resample_seed
+from ird_ros.jobs.inference_queries import Evidence, resample_seed
 
 OLD, NEW = (10, 0), (20, 0)
 

@@ -1,7 +1,7 @@
-"""Mission segmentation (ird_ros.missions) and the cell geometry on hand-made messages: no bag, no ROS.
+"""Mission segmentation (ird_ros.bags.missions) and the cell geometry on hand-made messages: no bag, no ROS.
 
 Messages are plain namespaces with the fields the analysis reads; every expectation is
-written from the rules in the ``ird_ros.missions`` docstring, never from the code under test.
+written from the rules in the ``ird_ros.bags.missions`` docstring, never from the code under test.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ird_ros import missions as M
-from ird_ros import names
-from ird_ros.grid_geometry import cell_center, grid_coordinates, point_cells
+from ird_ros.bags import missions as M
+from ird_ros.conversions.geometry import cell_center, grid_coordinates, point_cells
+from ird_ros.graph import names
 
 SEC = 1_000_000_000
 T0 = 1_000 * SEC
@@ -229,7 +229,7 @@ def test_terrain_decodes_classes_row_major_and_rejects_a_short_array() -> None:
 
 
 def test_missions_import_neither_ros_nor_rosbags() -> None:
-    code = ("import sys, ird_ros.missions, ird_ros.grid_geometry; "
+    code = ("import sys, ird_ros.bags.missions, ird_ros.conversions.geometry; "
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosbags', 'ird_msgs')); "
             "assert not bad, bad")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)

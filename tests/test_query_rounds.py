@@ -1,4 +1,4 @@
-"""ird_ros.query_rounds (no ROS): decoding /ird/queries records, pairing rounds, open queries,
+"""ird_ros.bags.rounds (no ROS): decoding /ird/queries records, pairing rounds, open queries,
 the true returns the simulated designer judges by, and the report rows."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ird_core import lavaland
-from ird_core.terrain import TERRAIN_NAMES
-from ird_ros import query_rounds as qr
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import TERRAIN_NAMES
+from ird_ros.bags import rounds as qr
 
 RES, ORIGIN = 0.5, (-1.0, 2.0)
 
@@ -119,8 +119,8 @@ def test_option_returns_refuse_unknown_cells_and_off_map_paths() -> None:
 
 
 def test_plot_query_rounds_draws_every_round(tmp_path: Any) -> None:
-    from ird_ros.bag_plots import plot_query_rounds
-    from ird_ros.missions import Terrain
+    from ird_ros.bags.missions import Terrain
+    from ird_ros.bags.plots import plot_query_rounds
 
     rounds = qr.rounds_from_events(_events(record(1), record(2), record(1, "answered", chosen=1)))
     terrain = Terrain(classes=np.zeros((3, 4), np.uint8), class_names=("dirt",), resolution=RES, origin=ORIGIN)
@@ -134,9 +134,11 @@ def test_analyze_bag_reports_and_draws_the_rounds(tmp_path: Any) -> None:
     import sys
     from pathlib import Path
 
-    from test_analyze_bag import ORIGIN as B_ORIGIN, RES as B_RES, SEC, BagBuilder, make, terrain_classes
+    from test_analyze_bag import ORIGIN as B_ORIGIN
+    from test_analyze_bag import RES as B_RES
+    from test_analyze_bag import SEC, BagBuilder, make, terrain_classes
 
-    from ird_ros.bag_reader import analyze
+    from ird_ros.bags.analysis import analyze
 
     path = tmp_path / "bag"
     b = BagBuilder(path)

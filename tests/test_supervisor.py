@@ -1,4 +1,4 @@
-"""ird_ros.supervisor with real child processes (plain ``python -c`` children, no ROS).
+"""ird_ros.launch.supervisor with real child processes (plain ``python -c`` children, no ROS).
 
 Properties: the stop escalation sends SIGINT, SIGTERM, SIGKILL in that order and on schedule
 to a child that ignores the first two; a crashed child is restarted after ``respawn_delay``
@@ -21,7 +21,7 @@ from typing import Iterator
 
 import pytest
 
-from ird_ros.supervisor import (
+from ird_ros.launch.supervisor import (
     ChildState,
     EventKind,
     ProcessExited,
@@ -209,7 +209,7 @@ def test_a_death_is_reported_after_the_last_words(make) -> None:
 
 PARENT = """
 import json, signal, sys
-from ird_ros.supervisor import ProcessSpec, Supervisor
+from ird_ros.launch.supervisor import ProcessSpec, Supervisor
 sup = Supervisor([ProcessSpec("orphan", (sys.executable, "-c", "import signal; signal.pause()"))])
 sup.start()
 print(json.dumps({"child": sup.info("orphan").pid}), flush=True)
@@ -263,7 +263,7 @@ def test_bad_arguments_name_the_field() -> None:
 
 
 def test_supervisor_imports_no_ros() -> None:
-    probe = ("import json, sys, ird_ros.supervisor, ird_ros.domains, ird_ros.waits; "
+    probe = ("import json, sys, ird_ros.launch.supervisor, ird_ros.graph.domains, ird_ros.client.waits; "
              "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'ird_msgs'))))")
     out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                          capture_output=True, text=True, check=True, timeout=60)

@@ -16,8 +16,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ird_core.render import TERRAIN_COLORS  # noqa: E402
-from ird_core.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
-from ird_core.world_file import write_image  # noqa: E402
+from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
+from ird_core.worlds.world_file import write_image  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 _CODES = {".": Terrain.DIRT, "S": Terrain.DIRT, "g": Terrain.GRASS, "T": Terrain.TARGET, "L": Terrain.LAVA,

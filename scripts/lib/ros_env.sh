@@ -1,6 +1,6 @@
 # Source this file, then call ird_ros_env: it prepares a private, localhost-only ROS 2
 # environment for this shell and its children.
-#   - DDS over loopback only (ird_dds_env, the same rule as ird_ros.domains.dds_env; a test
+#   - DDS over loopback only (ird_dds_env, the same rule as ird_ros.graph.domains.dds_env; a test
 #     holds the two equal): FASTRTPS_DEFAULT_PROFILES_FILE=msgs_config/dds/fastdds_localhost.xml
 #     and ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT (the profile does localhost discovery;
 #     LOCALHOST would make rmw_fastrtps add a UDP transport on every interface).
@@ -10,7 +10,7 @@
 #   - ROS_DOMAIN_ID: kept if already set, else leased in 0..101 by taking an flock on
 #     ${IRD_DOMAIN_LOCK_DIR:-/tmp/ird_ros_domains}/domain_<N>.lock on file descriptor 9
 #     (held while this shell or any child lives; the same lock files as
-#     ird_ros.domains.lease_domain, so concurrent runs never share a domain);
+#     ird_ros.graph.domains.lease_domain, so concurrent runs never share a domain);
 #     the search starts at IRD_TEST_DOMAIN_BASE if set, else at a pid-derived ID;
 #   - ROS_LOG_DIR: kept if set, else a fresh temporary directory (IRD_ROS_LOG_TMP names it,
 #     for the caller to remove).

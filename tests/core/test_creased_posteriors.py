@@ -7,13 +7,15 @@ import warnings
 
 import numpy as np
 import pytest
+from _quadrature import quadrature_moments
 from scipy.optimize import minimize
 
-from ird_core import inference as I
-from ird_core import lavaland, laplace, mcmc
-from ird_core.evidence import make_joint_model
+from ird_core import mcmc
+from ird_core import posterior as I
 from ird_core.mdp import GridMDP
-from _quadrature import quadrature_moments
+from ird_core.posterior import laplace
+from ird_core.posterior.evidence import make_joint_model
+from ird_core.worlds import lavaland
 
 # A 2-d target with creases: a correlated product of Laplace densities, mode at (1, -1).
 _MIX = np.array([[1.0, 0.0], [0.7, 1.0]])

@@ -1,4 +1,4 @@
-"""The home-made convergence diagnostics (ird_core.diagnostics) against ArviZ, the reference.
+"""The home-made convergence diagnostics (ird_core.mcmc.diagnostics) against ArviZ, the reference.
 
 ArviZ is a test-only dependency: the core stays numpy/scipy. Known, tested differences:
 
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from ird_core import diagnostics
+from ird_core.mcmc import diagnostics
 
 
 def ar1(rng: np.random.Generator, rho: float, chains: int, n: int, dim: int) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The joint IRD posterior (IRD_SPEC 7): several training MDPs and answered queries.
 
-Ground truth is brute-force enumeration of every trajectory (``ird_core.enumeration``) and a 2-d
+Ground truth is brute-force enumeration of every trajectory (``ird_core.mdp.enumeration``) and a 2-d
 grid quadrature of the brute-force density.
 """
 
@@ -10,19 +10,20 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from _quadrature import quadrature_moments
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.special import logsumexp
 
-from ird_core import inference as I
 from ird_core import mcmc
-from ird_core.enumeration import (
+from ird_core import posterior as I
+from ird_core.mdp import GridMDP
+from ird_core.mdp.enumeration import (
     all_trajectories,
     brute_feature_expectations,
     brute_log_partition,
     trajectory_features,
 )
-from ird_core.mdp import GridMDP
-from _quadrature import quadrature_moments
 
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (2, 3), horizon: int = 2) -> GridMDP:

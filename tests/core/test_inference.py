@@ -1,4 +1,4 @@
-"""The IRD posterior (ird_core.inference) against brute-force enumeration and quadrature."""
+"""The IRD posterior (ird_core.posterior) against brute-force enumeration and quadrature."""
 
 from __future__ import annotations
 
@@ -6,15 +6,16 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from _quadrature import quadrature_moments
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.special import logsumexp
 
-from ird_core import inference as I
-from ird_core import lavaland
 from ird_core import mcmc
-from ird_core.enumeration import brute_feature_expectations, brute_log_partition
+from ird_core import posterior as I
 from ird_core.mdp import GridMDP, feature_expectations
-from _quadrature import quadrature_moments
+from ird_core.mdp.enumeration import brute_feature_expectations, brute_log_partition
+from ird_core.worlds import lavaland
 
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (3, 3), horizon: int = 3) -> GridMDP:

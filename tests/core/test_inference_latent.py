@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ird_core import inference, lavaland
-from ird_core.terrain import Terrain
+from ird_core import posterior
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import Terrain
 
 #: Lava's posterior reward spread must exceed every safe terrain's by at least this factor.
 #: Measured on seed 0 (beta 1): about 5x for w . mu_t and 2.3x per cell (per-cell spreads include
@@ -24,7 +25,7 @@ CELL_SPREAD_FACTOR = 1.8
 @pytest.mark.parametrize("seed", [0, 1])
 def test_latent_raw_maxent_converges_and_lava_is_uncertain(seed: int) -> None:
     instance = lavaland.make_instance("latent_raw", seed)
-    post = inference.sample_posterior(instance.proxy_weights, lavaland.train_mdp(instance), 1.0, "maxent_z",
+    post = posterior.sample_posterior(instance.proxy_weights, lavaland.train_mdp(instance), 1.0, "maxent_z",
                                       1000, seed=seed)
     assert post.samples.shape == (1000, 50)
     assert post.r_hat_max <= 1.05, post.r_hat_max

@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
-from ird_core import lavaland as L
 from ird_core import mdp
-from ird_core.observations import (
+from ird_core.worlds import lavaland as L
+from ird_core.worlds.observations import (
     TerrainClassifier,
     fit_classifier,
     make_observation_model,
     sample_observations,
 )
-from ird_core.terrain import SAFE_TERRAINS, Terrain
+from ird_core.worlds.terrain import SAFE_TERRAINS, Terrain
 
 SEEDS = range(4)
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from ird_core import lavaland as L
 from ird_core import render
-from ird_core.terrain import TEST_MAP, Terrain, place_gold, sample_terrain, terrain_fractions
+from ird_core.worlds import lavaland as L
+from ird_core.worlds.terrain import TEST_MAP, Terrain, place_gold, sample_terrain, terrain_fractions
 
 SEEDS = range(12)
 

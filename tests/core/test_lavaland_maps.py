@@ -9,8 +9,8 @@ import time
 import numpy as np
 import pytest
 
-from ird_core import terrain as T
-from ird_core.terrain import TEST_MAP, TRAIN_MAP, MapConfig, Terrain
+from ird_core.worlds import terrain as T
+from ird_core.worlds.terrain import TEST_MAP, TRAIN_MAP, MapConfig, Terrain
 
 SEEDS = range(10)
 PER_MAP_TOLERANCE = 0.03  # every map's share of dirt/grass/lava vs the config (15x15)

@@ -1,4 +1,4 @@
-"""The compiled engine of the linear-space passes (``ird_core.linear_kernels``) against the numpy
+"""The compiled engine of the linear-space passes (``ird_core.mdp.linear_kernels``) against the numpy
 loops it replaces: bit for bit, on every output the passes have (log Z, visits, the underflow
 flags), on batches that take the rescaling and the exact fallback paths, and end to end on a
 seeded posterior. Also ``likelihoods.logsumexp_rows`` against scipy and the work-array cache.
@@ -17,8 +17,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
 
-from ird_core import inference, lavaland, linear_kernels, linear_passes, mdp
-from ird_core.likelihoods import logsumexp_rows
+from ird_core import mdp, posterior
+from ird_core.mdp import linear_kernels, linear_passes
+from ird_core.posterior.likelihoods import logsumexp_rows
+from ird_core.worlds import lavaland
 
 pytestmark = pytest.mark.skipif(not linear_kernels.available(), reason="numba is pinned in requirements.txt")
 
@@ -87,7 +89,7 @@ def test_a_seeded_posterior_draws_the_same_samples_with_either_engine(monkeypatc
     draws = {}
     for engine in ("numpy", "numba"):
         monkeypatch.setenv("IRD_ENGINE", engine)
-        post = inference.sample_joint_posterior(observations, 50.0, "sample_z", 16, 11, num_chains=2, warmup=20,
+        post = posterior.sample_joint_posterior(observations, 50.0, "sample_z", 16, 11, num_chains=2, warmup=20,
                                                 thin=1, max_leapfrog=8)
         draws[engine] = post.samples
     assert np.array_equal(draws["numpy"], draws["numba"])
@@ -147,7 +149,8 @@ def test_warm_up_loads_every_kernel_signature_a_real_pass_uses() -> None:
     this one has compiled the kernels already."""
     script = (
         "import numpy as np\n"
-        "from ird_core import linear_kernels, mdp\n"
+        "from ird_core import mdp\n"
+        "from ird_core.mdp import linear_kernels\n"
         "mdp.warm_up()\n"
         "counts = lambda: [len(k.signatures) for k in linear_kernels.compiled()]\n"
         "before = counts()\n"

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ird_core import mcmc, mcmc_kernels
+from ird_core import mcmc
+from ird_core.mcmc import kernels as mcmc_kernels
 
 
 def ar1(rng: np.random.Generator, rho: float, chains: int, n: int, dim: int) -> np.ndarray:

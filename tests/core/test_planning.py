@@ -11,12 +11,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ird_core import planning as P
-from ird_core import trajectory_solver as TS
-from ird_core.enumeration import all_trajectories, brute_log_partition, trajectory_features
 from ird_core.mdp import GridMDP, successor_table, validate_path
+from ird_core.mdp.enumeration import all_trajectories, brute_log_partition, trajectory_features
+from ird_core.planning import trajectory_solver as TS
 
 SHAPES = [(1, 1), (1, 2), (2, 1), (1, 3), (3, 1), (2, 2), (2, 3), (3, 2), (3, 3), (2, 4)]
 TRAJECTORY_SOLVERS = (None, "label-bb", "milp-highs")

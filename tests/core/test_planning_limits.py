@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ird_core import lavaland, planning
+from ird_core import planning
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland
 
 
 @pytest.mark.parametrize("baseline", ["log_z", "initial_state"])

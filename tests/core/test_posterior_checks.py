@@ -1,4 +1,4 @@
-"""inference.check_posterior_arguments: the inference node's up-front checks are sample_posterior's.
+"""checks.check_posterior_arguments: the inference node's up-front checks are sample_posterior's.
 
 Every argument it refuses, ``sample_posterior`` refuses with the same message; what it accepts,
 ``sample_posterior`` runs on (a tiny grid, a short chain).
@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ird_core import inference
+from ird_core import checks, posterior
 from ird_core.mdp import GridMDP
 
 MDP = GridMDP(np.random.default_rng(1).normal(size=(3, 3, 2)), (0, 1), 2)
@@ -29,7 +29,7 @@ BAD = [
 def _sample(args: dict) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        inference.sample_posterior(args["proxy_weights"], MDP, args["beta"], args["method"], args["num_samples"],
+        posterior.sample_posterior(args["proxy_weights"], MDP, args["beta"], args["method"], args["num_samples"],
                                    0, args["prior_sigma"], num_chains=2, warmup=2, thin=1)
 
 
@@ -37,7 +37,7 @@ def _sample(args: dict) -> None:
 def test_refuses_what_sample_posterior_refuses(field: str, value: object) -> None:
     args = {**GOOD, field: value}
     with pytest.raises(ValueError) as checked:
-        inference.check_posterior_arguments(args["proxy_weights"], MDP.num_features, args["beta"], args["method"],
+        checks.check_posterior_arguments(args["proxy_weights"], MDP.num_features, args["beta"], args["method"],
                                             args["num_samples"], args["prior_sigma"])
     assert str(checked.value).startswith(field + ":")
     with pytest.raises(ValueError) as sampled:
@@ -46,7 +46,7 @@ def test_refuses_what_sample_posterior_refuses(field: str, value: object) -> Non
 
 
 def test_accepts_what_sample_posterior_runs() -> None:
-    weights = inference.check_posterior_arguments(GOOD["proxy_weights"], MDP.num_features, GOOD["beta"],
+    weights = checks.check_posterior_arguments(GOOD["proxy_weights"], MDP.num_features, GOOD["beta"],
                                                   GOOD["method"], GOOD["num_samples"], GOOD["prior_sigma"])
     assert weights.dtype == np.float64 and np.array_equal(weights, GOOD["proxy_weights"])
     _sample(GOOD)

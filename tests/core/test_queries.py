@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ird_core import queries as Q
+from ird_core.designer import queries as Q
 from ird_core.mdp import GridMDP, optimal_path, path_features, validate_path
 
 

@@ -9,11 +9,11 @@ import warnings
 import numpy as np
 import pytest
 
-from ird_core import checks, inference, planning
-from ird_core.mdp import GridMDP
-
 # The tiny MDP, good arguments and sampler call of the posterior checks' own test.
 from test_posterior_checks import GOOD, MDP, _sample
+
+from ird_core import checks, planning, posterior
+from ird_core.mdp import GridMDP
 
 # The values of the reliability report (issue: "messages that do not name the field"), and the
 # edges of each range.
@@ -83,7 +83,7 @@ def test_plan_size_names_the_weights_and_the_limit() -> None:
     assert planning.plan_work(200_000, 1000, 15, 15) == 200_000 * 1001 * 225
 
 
-@pytest.mark.parametrize("method", inference.METHODS)
+@pytest.mark.parametrize("method", posterior.METHODS)
 def test_posterior_is_finite_at_the_corners_of_the_ranges(method: str) -> None:
     feature, weight = checks.MAX_ABS_FEATURE, checks.MAX_ABS_WEIGHT
     mdp = GridMDP(np.random.default_rng(1).choice([-feature, feature], (3, 3, 2)), (0, 1), 3)
@@ -91,6 +91,6 @@ def test_posterior_is_finite_at_the_corners_of_the_ranges(method: str) -> None:
         for sigma in checks.PRIOR_SIGMA_RANGE:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                posterior = inference.sample_posterior(np.array([weight, -weight]), mdp, beta, method, 4, 0, sigma,
-                                                       num_chains=2, warmup=5, thin=1)
-            assert np.all(np.isfinite(posterior.samples))
+                result = posterior.sample_posterior(np.array([weight, -weight]), mdp, beta, method, 4, 0, sigma,
+                                                    num_chains=2, warmup=5, thin=1)
+            assert np.all(np.isfinite(result.samples))

@@ -12,7 +12,7 @@ from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
 from ird_core import render
-from ird_core.terrain import TEST_MAP, TRAIN_MAP, Terrain, sample_terrain
+from ird_core.worlds.terrain import TEST_MAP, TRAIN_MAP, Terrain, sample_terrain
 
 
 def colour_present(image: np.ndarray, colour: str, tolerance: float = 2.5 / 255) -> bool:

@@ -1,4 +1,4 @@
-"""Rob's ROS-free execution logic against ird_core.lavaland's evaluation functions."""
+"""Rob's ROS-free execution logic against ird_core.worlds.lavaland's evaluation functions."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ird_core import lavaland
-from ird_core.terrain import TERRAIN_NAMES, Terrain
-from ird_ros.rob_logic import RobExecutor
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
+from ird_ros.jobs.rob_logic import RobExecutor
 
 
 def _executor(labels: np.ndarray) -> RobExecutor:

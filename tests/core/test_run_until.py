@@ -8,8 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from ird_core import inference, lavaland, mcmc
-from ird_core.sampler import RunUntil
+from ird_core import mcmc, posterior
+from ird_core.posterior.sampler import RunUntil
+from ird_core.worlds import lavaland
 
 # A 5x5 world whose short run (4 chains, 20 warm-up iterations, 120 after) has split R-hat
 # above 1.05 for seed 1 and mixes when run longer.
@@ -25,11 +26,11 @@ def world() -> tuple[np.ndarray, object]:
     return inst.proxy_weights, lavaland.train_mdp(inst)
 
 
-def _sample(world: tuple, seed: int, **kwargs: object) -> inference.Posterior:
+def _sample(world: tuple, seed: int, **kwargs: object) -> posterior.Posterior:
     proxy, mdp = world
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return inference.sample_posterior(proxy, mdp, 2.0, "maxent_z", NUM_SAMPLES, seed, **{**SHORT, **kwargs})
+        return posterior.sample_posterior(proxy, mdp, 2.0, "maxent_z", NUM_SAMPLES, seed, **{**SHORT, **kwargs})
 
 
 def _gaussian(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -95,7 +96,7 @@ def test_a_run_converged_at_the_first_check_is_the_fixed_length_run(world: tuple
 def test_the_iteration_cap_is_honoured_and_reported(world: tuple) -> None:
     with pytest.warns(RuntimeWarning, match="iteration cap 200"):
         proxy, mdp = world
-        post = inference.sample_posterior(proxy, mdp, 2.0, "maxent_z", NUM_SAMPLES, SEED_UNMIXED,
+        post = posterior.sample_posterior(proxy, mdp, 2.0, "maxent_z", NUM_SAMPLES, SEED_UNMIXED,
                                           until_converged=RunUntil(max_iterations=200), **SHORT)
     assert post.iterations == 200 and post.stop_reason == "max_iterations"
     assert not post.converged
@@ -114,13 +115,13 @@ def test_the_time_budget_is_a_safety_stop(world: tuple) -> None:
 def test_warm_start_runs_until_converged(world: tuple) -> None:
     proxy, mdp = world
     first = _sample(world, SEED_MIXED)
-    choice = inference.ChoiceObservation(np.random.default_rng(0).normal(size=(3, mdp.num_features)), 1, 1.0)
-    evidence = [inference.ProxyObservation(proxy, mdp), choice]
+    choice = posterior.ChoiceObservation(np.random.default_rng(0).normal(size=(3, mdp.num_features)), 1, 1.0)
+    evidence = [posterior.ProxyObservation(proxy, mdp), choice]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        fixed = inference.sample_joint_posterior(evidence, 2.0, "maxent_z", NUM_SAMPLES, 5, initial=first,
+        fixed = posterior.sample_joint_posterior(evidence, 2.0, "maxent_z", NUM_SAMPLES, 5, initial=first,
                                                  num_chains=4)
-        post = inference.sample_joint_posterior(evidence, 2.0, "maxent_z", NUM_SAMPLES, 5, initial=first,
+        post = posterior.sample_joint_posterior(evidence, 2.0, "maxent_z", NUM_SAMPLES, 5, initial=first,
                                                 num_chains=4, until_converged=RunUntil())
     assert post.warm_started and post.stop_reason == "converged"
     assert post.r_hat_max <= 1.05 and post.ess_min >= 400.0
@@ -148,7 +149,7 @@ def test_until_converged_must_be_a_run_until(world: tuple) -> None:
 
 
 def test_a_hopeless_run_gives_up_at_its_first_check_past_give_up_after(world: tuple, monkeypatch) -> None:
-    from ird_core import sampler
+    from ird_core.posterior import sampler
 
     monkeypatch.setattr(sampler, "GIVE_UP_R_HAT", 1.0)  # every unconverged check is "hopeless"
     rule = RunUntil(r_hat=1.05, min_ess=400.0, give_up_after=100)

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from test_planning import brute_values, value_of
 
-from ird_core import lavaland
 from ird_core import planning as P
-from ird_core import trajectory_solver as TS
 from ird_core.mdp import GridMDP, validate_path
+from ird_core.planning import trajectory_solver as TS
+from ird_core.worlds import lavaland
 
 SHAPES = [(3, 3), (2, 4), (3, 4)]
 

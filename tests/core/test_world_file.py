@@ -1,4 +1,4 @@
-"""World files (ird_core.world_file): validation, Lavaland round trip, several training worlds."""
+"""World files (ird_core.worlds.world_file): validation, Lavaland round trip, several training worlds."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import pytest
 import yaml
 from PIL import Image
 
-from ird_core import inference, lavaland, planning, world_file
+from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
-from ird_core.terrain import TERRAIN_NAMES, Terrain
+from ird_core.worlds import lavaland, world_file
+from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 COLOURS = {0: [139, 90, 43], 1: [60, 154, 60], 2: [255, 212, 0], 3: [224, 32, 27]}
@@ -194,10 +195,10 @@ def test_lavaland_round_trip(tmp_path: Path, condition: str) -> None:
     options = dict(num_chains=4, warmup=20, thin=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # short chains: only equality matters
-        before = inference.sample_posterior(original.proxy_weights, lavaland.train_mdp(original), 5.0, "maxent_z",
+        before = posterior.sample_posterior(original.proxy_weights, lavaland.train_mdp(original), 5.0, "maxent_z",
                                             40, 3, proxy_features=lavaland.proxy_feature_expectations(original),
                                             **options)
-        after = inference.sample_joint_posterior(lavaland.proxy_observations(loaded), 5.0, "maxent_z", 40, 3,
+        after = posterior.sample_joint_posterior(lavaland.proxy_observations(loaded), 5.0, "maxent_z", 40, 3,
                                                  **options)
     np.testing.assert_array_equal(after.samples, before.samples)
     assert _plans(loaded, after.samples) == _plans(original, before.samples)
@@ -217,27 +218,27 @@ def test_two_training_worlds_enter_the_joint_posterior(method: str) -> None:
     (second,) = inst.extra_training_worlds
     assert not (inst.train_labels == Terrain.GRASS).any() and (second.labels == Terrain.GRASS).any()
     observations = lavaland.proxy_observations(inst)
-    by_hand = [inference.ProxyObservation(inst.proxy_weights, GridMDP(inst.train_features, inst.train_start,
+    by_hand = [posterior.ProxyObservation(inst.proxy_weights, GridMDP(inst.train_features, inst.train_start,
                                                                       inst.train_horizon)),
-               inference.ProxyObservation(second.proxy_weights, GridMDP(second.features, second.start,
+               posterior.ProxyObservation(second.proxy_weights, GridMDP(second.features, second.start,
                                                                         second.horizon))]
     rng = np.random.default_rng(0)
     weights = rng.standard_normal((16, inst.num_features))
     beta, kw = 4.0, dict(seed=1, num_proxy_samples=50)
-    joint = inference.joint_log_posterior(weights, observations, beta, method, **kw)
-    np.testing.assert_allclose(joint, inference.joint_log_posterior(weights, by_hand, beta, method, **kw), rtol=1e-12)
+    joint = posterior.joint_log_posterior(weights, observations, beta, method, **kw)
+    np.testing.assert_allclose(joint, posterior.joint_log_posterior(weights, by_hand, beta, method, **kw), rtol=1e-12)
     # Independent evidence: joint = posterior(world 1) + posterior(world 2) - prior.
-    single = [inference.joint_log_posterior(weights, [o], beta, method, **kw) for o in observations]
-    prior = inference.log_prior(weights, 1.0)
+    single = [posterior.joint_log_posterior(weights, [o], beta, method, **kw) for o in observations]
+    prior = posterior.log_prior(weights, 1.0)
     np.testing.assert_allclose(joint - joint[0], (single[0] + single[1] - prior) - (single[0] + single[1] - prior)[0],
                                rtol=1e-9, atol=1e-9)
     # The first world has no grass: its likelihood ignores the grass weight; the second's does not.
     shifted = weights.copy()
     shifted[:, TERRAIN_NAMES.index("grass")] += 1.0
-    first = [inference.joint_log_posterior(w, observations[:1], beta, method, **kw) - inference.log_prior(w, 1.0)
+    first = [posterior.joint_log_posterior(w, observations[:1], beta, method, **kw) - posterior.log_prior(w, 1.0)
              for w in (weights, shifted)]
     np.testing.assert_allclose(first[1] - first[1][0], first[0] - first[0][0], atol=1e-9)
-    both = [inference.joint_log_posterior(w, observations, beta, method, **kw) - inference.log_prior(w, 1.0)
+    both = [posterior.joint_log_posterior(w, observations, beta, method, **kw) - posterior.log_prior(w, 1.0)
             for w in (weights, shifted)]
     assert np.max(np.abs((both[1] - both[1][0]) - (both[0] - both[0][0]))) > 1e-3
 
@@ -247,12 +248,12 @@ def test_two_training_worlds_sample_as_the_joint_posterior() -> None:
     options = dict(num_chains=4, warmup=20, thin=1)
     observations = lavaland.proxy_observations(inst)
     second = inst.extra_training_worlds[0]
-    by_hand = observations[:1] + [inference.ProxyObservation(
+    by_hand = observations[:1] + [posterior.ProxyObservation(
         second.proxy_weights, GridMDP(second.features, second.start, second.horizon))]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        a = inference.sample_joint_posterior(observations, 5.0, "maxent_z", 40, 7, **options)
-        b = inference.sample_joint_posterior(by_hand, 5.0, "maxent_z", 40, 7, **options)
+        a = posterior.sample_joint_posterior(observations, 5.0, "maxent_z", 40, 7, **options)
+        b = posterior.sample_joint_posterior(by_hand, 5.0, "maxent_z", 40, 7, **options)
     np.testing.assert_array_equal(a.samples, b.samples)
     assert a.num_proxies == 2
 

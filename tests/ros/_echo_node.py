@@ -7,9 +7,8 @@ Run as a script (its directory is then on sys.path): python tests/ros/_echo_node
 from __future__ import annotations
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
-
 from _roundtrip_cases import QOS, READY, SERVICES, TOPIC_CASES, respond
+from rclpy.executors import ExternalShutdownException
 
 
 def main() -> None:

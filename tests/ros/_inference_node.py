@@ -18,7 +18,7 @@ SAMPLER = dict(num_chains=4, warmup=20, thin=1, num_proxy_samples=16)
 @contextlib.contextmanager
 def small_inference_node(domain: DomainLease) -> Iterator[NodeProcess]:
     """The inference node with SAMPLER, ready; on exit its clean shutdown (code 0) is checked."""
-    args = ["-m", "ird_ros.inference", "--ros-args", "--params-file", PARAMS]
+    args = ["-m", "ird_ros.nodes.inference", "--ros-args", "--params-file", PARAMS]
     for key, value in SAMPLER.items():
         args += ["-p", f"{key}:={value}"]
     with spawn_node_process(args, domain=domain, name="inference", ready_text="inference ready") as proc:

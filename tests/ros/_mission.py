@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from ird_msgs.srv import PlanPath
-from ird_ros import names
-from ird_ros.waits import call_service, spin_until
+from ird_ros.client.waits import call_service, spin_until
+from ird_ros.graph import names
 
 
 def drive_ird_plan(node: Any, proxy: Any, samples: Any, reference: np.ndarray,

@@ -7,9 +7,10 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
+
 from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
 from ird_msgs.srv import AnswerQuery, GenerateWorld, InferReward, ProposeQuery
-from ird_ros import names
+from ird_ros.graph import names
 from ird_ros.testing import NodeProcess, call_service, spin_until, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]

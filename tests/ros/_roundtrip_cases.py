@@ -60,7 +60,7 @@ def terrain_grid(with_optional: bool) -> TerrainGrid:
     return msg
 
 
-class _Posterior:  # duck-typed like ird_core.inference.Posterior
+class _Posterior:  # duck-typed like ird_core.posterior.Posterior
     def __init__(self, samples: np.ndarray) -> None:
         self.samples = samples
         self.method = "sample_z"

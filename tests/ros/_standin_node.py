@@ -20,8 +20,9 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from ird_ros import graph, names  # noqa: E402
-from ird_ros.launcher import LaunchSpec, graph_specs  # noqa: E402
+from ird_ros import graph
+from ird_ros.graph import names  # noqa: E402
+from ird_ros.launch.launcher import LaunchSpec, graph_specs  # noqa: E402
 
 SCRIPT = str(Path(__file__).resolve())
 

@@ -8,7 +8,7 @@ Two queues of depth 10 (rclpy's default service QoS) lost answers: the server's 
 (a burst of 32 requests arriving before the executor took them: 11 answered) and each client's
 response reader, which receives the responses to every client of the service (a burst of
 immediate "busy" answers pushed a client's own response out before it was taken). The nodes
-serve with ``ird_ros.offload.service_qos()`` and the clients here use it too, as the project's
+serve with ``ird_ros.runtime.offload.service_qos()`` and the clients here use it too, as the project's
 scripts do.
 """
 
@@ -18,14 +18,14 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import pytest
-
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from ird_core import lavaland
+
+from ird_core.worlds import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.offload import service_qos
+from ird_ros.graph import names
+from ird_ros.runtime.offload import service_qos
 from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process, spin_until
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,7 +35,7 @@ NUM_CLIENTS = 32
 
 @pytest.fixture(scope="module")
 def inference(ros_domain: DomainLease) -> Iterator[NodeProcess]:
-    args = ["-m", "ird_ros.inference", "--ros-args", "--params-file", PARAMS,
+    args = ["-m", "ird_ros.nodes.inference", "--ros-args", "--params-file", PARAMS,
             "-p", "num_chains:=2", "-p", "warmup:=10", "-p", "thin:=1", "-p", "max_pending:=8"]
     with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as proc:
         yield proc

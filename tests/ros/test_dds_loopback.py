@@ -5,7 +5,7 @@ against /proc/<pid>/net/{udp,udp6,tcp,tcp6}. 0.0.0.0 and :: count as outside loo
 same check on the same node started without the profile (the set-up before it existed:
 LOCALHOST discovery range, no profile) and with the multi-machine switch finds sockets
 outside, so the check can fail. The rule that sets the variables exists in Python
-(``ird_ros.domains.dds_env``) and in shell (``scripts/lib/ros_env.sh``); they must agree.
+(``ird_ros.graph.domains.dds_env``) and in shell (``scripts/lib/ros_env.sh``); they must agree.
 """
 
 from __future__ import annotations
@@ -20,17 +20,24 @@ import pytest
 
 from ird_msgs.msg import ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
-from ird_ros import names
-from ird_ros.domains import DDS_PROFILE, DDS_PROFILE_VAR, dds_env
-from ird_ros.launcher import GraphLauncher
-from ird_ros.testing import (DomainLease, NodeProcess, call_service, lease_domain, running_nodes, spawn_node_process,
-                             spin_until)
+from ird_ros.graph import names
+from ird_ros.graph.domains import DDS_PROFILE, DDS_PROFILE_VAR, dds_env
+from ird_ros.launch.launcher import GraphLauncher
+from ird_ros.testing import (
+    DomainLease,
+    NodeProcess,
+    call_service,
+    lease_domain,
+    running_nodes,
+    spawn_node_process,
+    spin_until,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
-WORLD = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
+WORLD = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
          "-p", "seed:=3", "-p", "height:=6", "-p", "width:=7", "-p", "horizon:=8", "-p", "obs_dim:=12"]
-PERCEPTION = ["-m", "ird_ros.perception", "--ros-args", "--params-file", PARAMS]
+PERCEPTION = ["-m", "ird_ros.nodes.perception", "--ros-args", "--params-file", PARAMS]
 DDS_KEYS = ("ROS_AUTOMATIC_DISCOVERY_RANGE", DDS_PROFILE_VAR, "ROS_LOCALHOST_ONLY")
 
 

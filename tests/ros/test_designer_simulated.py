@@ -11,14 +11,14 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
+from _query_world import SAMPLER_ARGS, Probe, node_args, world_args
 from nav_msgs.msg import OccupancyGrid
 
-from _query_world import SAMPLER_ARGS, Probe, node_args, world_args
-from ird_core import lavaland
-from ird_core.queries import SimulatedDesigner
+from ird_core.designer.queries import SimulatedDesigner
+from ird_core.worlds import lavaland
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros import query_rounds as qr
+from ird_ros.bags import rounds as qr
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, NodeProcess, running_nodes, spawn_node_process
 
 DESIGNER_BETA, DESIGNER_SEED = 2.0, 9
@@ -62,16 +62,16 @@ class Mission(Probe):
 
 @pytest.fixture
 def mission(ros_domain: DomainLease, ros_ctx: Any) -> Iterator[Mission]:
-    with running_nodes(ros_domain, ("world", node_args("ird_ros.world", world_args(5))),
-                       ("inference", node_args("ird_ros.inference", SAMPLER_ARGS)),
-                       ("planner", node_args("ird_ros.planner", []))) as procs:
+    with running_nodes(ros_domain, ("world", node_args("ird_ros.nodes.world", world_args(5))),
+                       ("inference", node_args("ird_ros.nodes.inference", SAMPLER_ARGS)),
+                       ("planner", node_args("ird_ros.nodes.planner", []))) as procs:
         m = Mission(ros_ctx, procs)
         yield m
         m.node.destroy_node()
 
 
 def _designer(ros_domain: DomainLease) -> NodeProcess:
-    return spawn_node_process(node_args("ird_ros.designer", DESIGNER_ARGS), domain=ros_domain, name="designer",
+    return spawn_node_process(node_args("ird_ros.nodes.designer", DESIGNER_ARGS), domain=ros_domain, name="designer",
                               ready_text="designer ready")
 
 

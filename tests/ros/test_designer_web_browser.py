@@ -76,10 +76,10 @@ class Probe:
 
     def __init__(self, ctx: Any, procs: list[Any]) -> None:
         import rclpy
-        from ird_msgs.msg import QueryRecord, RewardPosterior
         from nav_msgs.msg import OccupancyGrid
 
-        from ird_ros import names
+        from ird_msgs.msg import QueryRecord, RewardPosterior
+        from ird_ros.graph import names
 
         self.procs = procs
         self.node = rclpy.create_node("designer_web_probe", context=ctx)
@@ -109,8 +109,7 @@ def infer_first_posterior(probe: Probe) -> Any:
     """The proxy's posterior (/ird/infer), which the questions start from; returns the proxy."""
     from ird_msgs.msg import FeatureGrid, ProxyReward
     from ird_msgs.srv import InferReward
-
-    from ird_ros import names
+    from ird_ros.graph import names
     from ird_ros.testing import receive_messages
 
     proxy = receive_messages(probe.node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
@@ -126,8 +125,7 @@ def infer_first_posterior(probe: Probe) -> Any:
 
 def ask(probe: Probe, proxy: Any, seed: int) -> Any:
     from ird_msgs.srv import ProposeQuery
-
-    from ird_ros import names
+    from ird_ros.graph import names
 
     req = ProposeQuery.Request()
     req.start_row, req.start_col, req.horizon = proxy.test_start_row, proxy.test_start_col, proxy.test_horizon

@@ -2,7 +2,7 @@
 
 One mission as a user runs it: the seeded /ird/infer answer equals ird_core's
 sample_posterior, the IRD plan equals plan_path, Rob executes it and judges it like
-ird_core.lavaland, and the recorder's bag holds exactly what was published; analyze_bag.py
+ird_core.worlds.lavaland, and the recorder's bag holds exactly what was published; analyze_bag.py
 reads it without ROS.
 """
 
@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import yaml
 
-from ird_core import inference, lavaland, planning
+from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland
 
 REPO = Path(__file__).resolve().parents[2]
 SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
@@ -26,15 +27,15 @@ SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     import rclpy
-    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
     from _mission import drive_ird_plan
-    from ird_msgs.srv import InferReward
     from nav_msgs.msg import OccupancyGrid
 
+    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
+    from ird_msgs.srv import InferReward
     from ird_ros import conversions as conv
-    from ird_ros import names
-    from ird_ros.launcher import GraphLauncher
-    from ird_ros.testing import (call_service, receive_messages, ros_context, wait_for_publishers)
+    from ird_ros.graph import names
+    from ird_ros.launch.launcher import GraphLauncher
+    from ird_ros.testing import call_service, receive_messages, ros_context, wait_for_publishers
 
     tmp = tmp_path_factory.mktemp("e2e")
     params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
@@ -91,7 +92,7 @@ def test_world_matches_ird_core(mission: dict) -> None:
 def test_posterior_equals_sample_posterior(mission: dict) -> None:
     proxy, train = mission["proxy"], mission["train"]
     mdp = GridMDP(np.asarray(train.features, dtype=np.float64), (proxy.start_row, proxy.start_col), proxy.horizon)
-    direct = inference.sample_posterior(np.asarray(proxy.weights), mdp, 5.0, "maxent_z", 40, 11)
+    direct = posterior.sample_posterior(np.asarray(proxy.weights), mdp, 5.0, "maxent_z", 40, 11)
     got = mission["posterior"]
     assert np.array_equal(got.samples, direct.samples)
     assert got.r_hat_max == pytest.approx(direct.r_hat_max)
@@ -115,7 +116,7 @@ def test_rob_executes_the_plan_and_judges_it_like_ird_core(mission: dict) -> Non
 
 
 def test_bag_holds_every_recorded_topic_and_analyze_bag_reads_it(mission: dict) -> None:
-    from ird_ros.bag_reader import summarize
+    from ird_ros.bags.analysis import summarize
 
     counts = {t.topic: t.count for t in summarize(mission["bag"])}
     steps = HORIZON + 1

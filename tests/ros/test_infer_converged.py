@@ -9,15 +9,15 @@ from typing import Any
 
 import numpy as np
 import pytest
-
 import rclpy
-from ird_core import inference as core_inference
-from ird_core import lavaland
+
+from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
-from ird_core.sampler import RunUntil
+from ird_core.posterior.sampler import RunUntil
+from ird_core.worlds import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
-from ird_ros import names
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, call_service, spawn_node_process, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,7 +56,7 @@ def _core(inst: lavaland.LavalandInstance, **kwargs: Any) -> core_inference.Post
 
 
 def _infer(ros_ctx: Any, ros_domain: DomainLease, req: InferReward.Request, **params: Any) -> InferReward.Response:
-    args = ["-m", "ird_ros.inference", "--ros-args", "--params-file", PARAMS]
+    args = ["-m", "ird_ros.nodes.inference", "--ros-args", "--params-file", PARAMS]
     for key, value in {**SAMPLER, **params}.items():
         args += ["-p", f"{key}:={value}"]
     with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as proc:

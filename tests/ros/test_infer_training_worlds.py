@@ -9,18 +9,18 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
-
 import rclpy
-from ird_core import inference as core_inference
-from ird_core import lavaland, world_file
+from _inference_node import SAMPLER, small_inference_node
+
+from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland, world_file
 from ird_msgs.msg import TrainingWorld
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.inference import ExtraWorld, InferenceJob, SamplerSettings, job_observations
+from ird_ros.graph import names
+from ird_ros.nodes.inference import ExtraWorld, InferenceJob, SamplerSettings, job_observations
 from ird_ros.testing import DomainLease, NodeProcess, call_service, wait_for_service
-from _inference_node import SAMPLER, small_inference_node
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,4 +1,4 @@
-"""ird_ros.launcher / scripts/launch_graph.py: start, readiness, death reports, respawn, stop.
+"""ird_ros.launch.launcher / scripts/launch_graph.py: start, readiness, death reports, respawn, stop.
 
 Every graph runs in a domain leased by the launcher itself (``private_domain``). The
 stand-in table (tests/ros/_standin_node.py: the real node table, each node replaced by a
@@ -19,10 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from _standin_node import STANDIN_SPECS
-from ird_ros import bag_reader, domains, names
-from ird_ros.launcher import GraphLauncher, LaunchError, graph_specs
+
+from ird_ros.bags import analysis as bag_reader
+from ird_ros.graph import domains, names
+from ird_ros.launch.launcher import GraphLauncher, LaunchError, graph_specs
 from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -69,7 +70,7 @@ def test_api_ready_death_report_respawn_and_stop(tmp_path: Path) -> None:
             assert " ready " in row and str(graph.pids()[name]) in row
         first_pids = graph.pids()
         assert all(_running(pid) for pid in first_pids.values())
-        # loopback-only transport (stronger than discovery range LOCALHOST, see ird_ros.domains)
+        # loopback-only transport (stronger than discovery range LOCALHOST, see ird_ros.graph.domains)
         assert graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
         assert graph.env[domains.DDS_PROFILE_VAR] == str(domains.DDS_PROFILE)
         assert 0 <= graph.domain_id <= 101

@@ -9,14 +9,15 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
-
 import rclpy
-from ird_core import lavaland, planning
+
+from ird_core import planning
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.offload import service_qos
+from ird_ros.graph import names
+from ird_ros.runtime.offload import service_qos
 from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,7 +27,7 @@ TIME_LIMIT = 3.0
 
 @pytest.fixture(scope="module")
 def planner(ros_domain: DomainLease) -> Iterator[NodeProcess]:
-    args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS, "-p", f"time_limit:={TIME_LIMIT}"]
+    args = ["-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS, "-p", f"time_limit:={TIME_LIMIT}"]
     with spawn_node_process(args, domain=ros_domain, name="planner", ready_text="planner ready") as proc:
         yield proc
     assert proc.returncode == 0, proc.describe()
@@ -121,7 +122,7 @@ def _allocate(megabytes: int) -> int:
 
 
 def test_worker_memory_limit_fails_the_job_not_the_pool() -> None:
-    from ird_ros.node_main import WorkerPool
+    from ird_ros.runtime.node_main import WorkerPool
 
     pool = WorkerPool(1, warm_modules=("numpy",), memory_limit=1024 * 2**20)
     try:
@@ -136,7 +137,7 @@ def test_worker_memory_limit_fails_the_job_not_the_pool() -> None:
 def test_empty_condition_keeps_the_current_one(ros_domain: DomainLease, ros_ctx: Any) -> None:
     from ird_msgs.srv import GenerateWorld
 
-    args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=reward_hacking",
+    args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=reward_hacking",
             "-p", "height:=5", "-p", "width:=5", "-p", "horizon:=4"]
     with spawn_node_process(args, domain=ros_domain, name="world", ready_text="world ready") as world:
         node = rclpy.create_node("limits_world_client", context=ros_ctx)

@@ -16,7 +16,18 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
-from _roundtrip_cases import QOS, READY, SERVICE_REQUESTS, SERVICES, TOPIC_CASES, canonical, digest, infer_request, respond
+from _roundtrip_cases import (
+    QOS,
+    READY,
+    SERVICE_REQUESTS,
+    SERVICES,
+    TOPIC_CASES,
+    canonical,
+    digest,
+    infer_request,
+    respond,
+)
+
 from ird_ros import conversions as conv
 from ird_ros.testing import (
     DomainLease,

@@ -10,21 +10,21 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
+import rclpy
+from _inference_node import SAMPLER, small_inference_node
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import rclpy
 from ird_core import checks
-from ird_core import inference as core_inference
-from ird_core import lavaland
+from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland
 from ird_msgs.msg import RewardPosterior
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.inference import proxy_map_terms
+from ird_ros.graph import names
+from ird_ros.nodes.inference import proxy_map_terms
 from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
-from _inference_node import SAMPLER, small_inference_node
 
 SIZE, HORIZON = 5, 6
 

@@ -1,4 +1,4 @@
-"""Process life cycle of the nodes (ird_ros.node_main): clean exit 0 on SIGINT and SIGTERM, also
+"""Process life cycle of the nodes (ird_ros.runtime.node_main): clean exit 0 on SIGINT and SIGTERM, also
 when started with SIGINT ignored (``cmd &`` from a non-interactive shell), with the inference
 worker processes gone, even in the middle of a long inference."""
 
@@ -16,10 +16,11 @@ from typing import Any, Iterator
 
 import pytest
 
-from ird_core import lavaland
+from ird_core.worlds import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
-from ird_ros import graph, names
+from ird_ros import graph
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, spin_until, wait_for_node, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -111,7 +112,7 @@ def test_nodes_exit_0_on_signal_even_with_sigint_ignored(ros_domain: DomainLease
 
 
 def test_sigterm_during_a_long_inference(ros_domain: DomainLease, ros_node: Any, started: list[Background]) -> None:
-    bg = Background("ird_ros.inference", ros_domain)
+    bg = Background("ird_ros.nodes.inference", ros_domain)
     started.append(bg)
     assert bg.ready.wait(60.0), bg.output()
     client = ros_node.create_client(InferReward, names.SRV_INFER)

@@ -8,14 +8,14 @@ from typing import Any, Iterator
 import numpy as np
 import pytest
 
-from ird_core import lavaland
-from ird_core.terrain import Terrain
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import Terrain
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.testing import running_nodes as running
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
+from ird_ros.testing import running_nodes as running
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -25,10 +25,10 @@ SEED = 21
 
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
-    world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
+    world_args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
                   "-p", f"obs_dim:={OBS}"]
-    perception_args = ["-m", "ird_ros.perception", "--ros-args", "--params-file", PARAMS]
+    perception_args = ["-m", "ird_ros.nodes.perception", "--ros-args", "--params-file", PARAMS]
     with running(ros_domain, ("world", world_args), ("perception", perception_args)) as procs:
         yield procs
 

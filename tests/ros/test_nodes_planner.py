@@ -10,15 +10,16 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
+from nav_msgs.msg import OccupancyGrid
+from nav_msgs.msg import Path as PathMsg
 
-from ird_core import lavaland, planning
+from ird_core import planning
 from ird_core.mdp import GridMDP
+from ird_core.worlds import lavaland
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import GenerateWorld, PlanPath
-from nav_msgs.msg import OccupancyGrid, Path as PathMsg
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.testing import running_nodes as running
+from ird_ros.graph import names
 from ird_ros.testing import (
     DomainLease,
     NodeProcess,
@@ -28,6 +29,7 @@ from ird_ros.testing import (
     wait_for_service,
     wait_for_subscribers,
 )
+from ird_ros.testing import running_nodes as running
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -37,11 +39,11 @@ SEED = 13
 
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
-    world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
+    world_args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
                   "-p", f"obs_dim:={OBS}", "-p", "resolution:=0.25"]
-    perception_args = ["-m", "ird_ros.perception", "--ros-args", "--params-file", PARAMS]
-    planner_args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS,
+    perception_args = ["-m", "ird_ros.nodes.perception", "--ros-args", "--params-file", PARAMS]
+    planner_args = ["-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS,
                     "-p", "replan_on_posterior:=true", "-p", "default_mode:=per_step",
                     "-p", "default_baseline:=training_features"]
     with running(ros_domain, ("world", world_args), ("perception", perception_args),
@@ -286,7 +288,7 @@ def test_plan_without_inputs_is_named() -> None:
 
     from ird_ros.testing import lease_domain, ros_context
 
-    args = ["-m", "ird_ros.planner", "--ros-args", "--params-file", PARAMS]
+    args = ["-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS]
     with lease_domain() as lease, ros_context(lease) as ctx, \
             spawn_node_process(args, domain=lease, name="lonely_planner", ready_text="planner ready") as proc:
         node = rclpy.create_node("lonely_probe", context=ctx)

@@ -9,14 +9,14 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
+from _query_world import SAMPLER_ARGS, SIZE, Probe, node_args, world_args
 
-from _query_world import SIZE, SAMPLER_ARGS, Probe, node_args, world_args
-from ird_core import queries as core_queries
+from ird_core.designer import queries as core_queries
 from ird_msgs.msg import RewardPosterior
 from ird_msgs.srv import AnswerQuery, GenerateWorld, ProposeQuery
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros import query_rounds as qr
+from ird_ros.bags import rounds as qr
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, running_nodes
 
 ANSWER_BETA = 1.0  # the inference node's answer_beta (graph.yaml)
@@ -24,8 +24,8 @@ ANSWER_BETA = 1.0  # the inference node's answer_beta (graph.yaml)
 
 @pytest.fixture(scope="module")
 def probe(ros_domain: DomainLease, ros_ctx: Any) -> Iterator[Probe]:
-    with running_nodes(ros_domain, ("world", node_args("ird_ros.world", world_args(3))),
-                       ("inference", node_args("ird_ros.inference", SAMPLER_ARGS))) as procs:
+    with running_nodes(ros_domain, ("world", node_args("ird_ros.nodes.world", world_args(3))),
+                       ("inference", node_args("ird_ros.nodes.inference", SAMPLER_ARGS))) as procs:
         p = Probe(ros_ctx, procs)
         yield p
         p.node.destroy_node()

@@ -7,14 +7,14 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
+from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path as PathMsg
 
-from ird_core import lavaland
-from ird_core.terrain import Terrain
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import Terrain
 from ird_msgs.msg import PlanInfo, RobStatus
-from nav_msgs.msg import Odometry, Path as PathMsg
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.testing import running_nodes as running
+from ird_ros.graph import names
 from ird_ros.testing import (
     DomainLease,
     NodeProcess,
@@ -22,6 +22,7 @@ from ird_ros.testing import (
     wait_for_publishers,
     wait_for_subscribers,
 )
+from ird_ros.testing import running_nodes as running
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -32,10 +33,10 @@ RESOLUTION, ORIGIN = 0.5, (0.0, 0.0)
 
 @pytest.fixture(scope="module")
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
-    world_args = ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
+    world_args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
                   "-p", f"resolution:={RESOLUTION}"]
-    rob_args = ["-m", "ird_ros.rob", "--ros-args", "--params-file", PARAMS, "-p", "rate_hz:=40.0"]
+    rob_args = ["-m", "ird_ros.nodes.rob", "--ros-args", "--params-file", PARAMS, "-p", "rate_hz:=40.0"]
     with running(ros_domain, ("world", world_args), ("rob", rob_args)) as procs:
         yield procs
 

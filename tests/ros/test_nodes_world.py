@@ -9,14 +9,22 @@ import numpy as np
 import pytest
 import yaml
 
-from ird_core import lavaland, world_file
-from ird_core.terrain import TERRAIN_NAMES
+from ird_core.worlds import lavaland, world_file
+from ird_core.worlds.terrain import TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
-from ird_ros import names
-from ird_ros.testing import (DomainLease, NodeProcess, call_service, lease_domain, ros_context, spawn_node_process,
-                             spin_until, wait_for_service)
+from ird_ros.graph import names
+from ird_ros.testing import (
+    DomainLease,
+    NodeProcess,
+    call_service,
+    lease_domain,
+    ros_context,
+    spawn_node_process,
+    spin_until,
+    wait_for_service,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -24,7 +32,7 @@ H, W, T, OBS = 6, 7, 8, 12
 
 
 def world_args(condition: str = "side_effects", seed: int = 3) -> list[str]:
-    return ["-m", "ird_ros.world", "--ros-args", "--params-file", PARAMS,
+    return ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS,
             "-p", f"condition:={condition}", "-p", f"seed:={seed}", "-p", f"height:={H}", "-p", f"width:={W}",
             "-p", f"horizon:={T}", "-p", f"obs_dim:={OBS}", "-p", "resolution:=0.5"]
 
@@ -208,9 +216,9 @@ def test_world_file_is_published_with_every_training_world() -> None:
     second training world; /world/generate replaces the file world and "file" brings it back.
     A domain of its own: the module's world node publishes the same topics."""
     import rclpy
-    from ird_msgs.srv import InferReward
 
-    from ird_ros.world import TOPIC_INFER_REQUEST
+    from ird_msgs.srv import InferReward
+    from ird_ros.nodes.world import TOPIC_INFER_REQUEST
 
     wf = world_file.load_world_file(ROOT / "worlds" / "two_training_worlds.yaml")
     inst = wf.instance

@@ -1,4 +1,4 @@
-"""ird_ros.offload: the one mapping of a worker job's outcome to a service answer.
+"""ird_ros.runtime.offload: the one mapping of a worker job's outcome to a service answer.
 
 With a controllable stand-in pool (busy accounting, every failure kind) and with a real
 ``WorkerPool`` driven by an rclpy executor (library errors, a dying worker and its replacement).
@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterator
 
 import pytest
 
-from ird_ros.offload import Offload, OffloadError
+from ird_ros.runtime.offload import Offload, OffloadError
 from ird_ros.testing import spin_until
 
 
@@ -156,15 +156,15 @@ def test_warm_modules_warm_up_hook_loads_the_compiled_passes_before_any_request(
     """A warm module's ``warm_up()`` runs in every worker at start-up: with ``ird_core.mdp`` the
     compiled MDP kernels are loaded before the first job (a fresh worker that had only imported
     the module would report kernels without any compiled signature)."""
-    from ird_core import linear_kernels
-    from ird_ros.node_main import WorkerPool
+    from ird_core.mdp import linear_kernels
+    from ird_ros.runtime.node_main import WorkerPool
 
     if not linear_kernels.available():
         pytest.skip("numba is pinned in requirements.txt")
-    probe = ("[len(k.signatures) for k in __import__('ird_core.linear_kernels', fromlist=['compiled'])"
+    probe = ("[len(k.signatures) for k in __import__('ird_core.mdp.linear_kernels', fromlist=['compiled'])"
              ".compiled()]")
     warm = WorkerPool(1, warm_modules=("ird_core.mdp",))
-    cold = WorkerPool(1, warm_modules=("ird_core.linear_kernels",))  # no warm_up hook
+    cold = WorkerPool(1, warm_modules=("ird_core.mdp.linear_kernels",))  # no warm_up hook
     try:
         assert all(n >= 1 for n in warm.submit_concurrent(eval, probe).result(timeout=120))
         assert cold.submit_concurrent(eval, probe).result(timeout=120) == [0, 0, 0]

@@ -1,6 +1,6 @@
-"""ird_ros.recorder over real DDS in a private domain.
+"""ird_ros.nodes.recorder over real DDS in a private domain.
 
-The recorder runs as its own process (``python -m ird_ros.recorder``); this test process
+The recorder runs as its own process (``python -m ird_ros.nodes.recorder``); this test process
 publishes (FeatureGrid maps big enough to span several MCAP chunks, a latched TerrainGrid
 published before the recorder even started, volatile RobStatus/Odometry streams, and a topic
 the recorder must ignore), waits until every reliable message was acknowledged by the
@@ -22,7 +22,9 @@ import numpy as np
 import pytest
 from rclpy.duration import Duration
 
-from ird_ros import bag_reader, conversions as conv, names
+from ird_ros import conversions as conv
+from ird_ros.bags import analysis as bag_reader
+from ird_ros.graph import names
 from ird_ros.testing import DomainLease, spawn_node_process, wait_for_subscribers
 
 N_STATUS = 37
@@ -32,7 +34,7 @@ MAP_SHAPE = (40, 40, 50)  # 80 000 float32 = 320 kB per message: several 1 MiB c
 
 
 def _recorder(domain: DomainLease, out: Path, topics: list[str] | None, name: str = "recorder") -> Any:
-    args = ["-m", "ird_ros.recorder", "--ros-args", "-p", f"output_dir:={out}", "-p", "flush_period:=0.2"]
+    args = ["-m", "ird_ros.nodes.recorder", "--ros-args", "-p", f"output_dir:={out}", "-p", "flush_period:=0.2"]
     if topics is not None:
         args += ["-p", "topics:=[" + ",".join(topics) + "]"]
     return spawn_node_process(args, domain=domain, name=name, ready_text="recording")
@@ -44,9 +46,10 @@ def _terrain() -> Any:
 
 
 def _publish_and_record(node: Any, domain: DomainLease, tmp: Path, sig: int, topics: list[str] | None) -> tuple[Path, dict, Any]:
-    from ird_msgs.msg import FeatureGrid, RobStatus, TerrainGrid
     from nav_msgs.msg import Odometry
     from std_msgs.msg import String
+
+    from ird_msgs.msg import FeatureGrid, RobStatus, TerrainGrid
 
     out = tmp / "bag"
     # Published before the recorder exists: only transient-local durability can bring it in.
@@ -151,7 +154,7 @@ def test_existing_output_dir_is_refused(ros_domain: DomainLease, tmp_path: Path)
     out = tmp_path / "exists"
     out.mkdir()
     (out / "keep.txt").write_text("precious")
-    proc = spawn_node_process(["-m", "ird_ros.recorder", "--ros-args", "-p", f"output_dir:={out}"],
+    proc = spawn_node_process(["-m", "ird_ros.nodes.recorder", "--ros-args", "-p", f"output_dir:={out}"],
                               domain=ros_domain, name="recorder-refuse")
     assert proc.proc.wait(timeout=30) == 2
     proc.stop()
@@ -160,7 +163,7 @@ def test_existing_output_dir_is_refused(ros_domain: DomainLease, tmp_path: Path)
 
 
 def test_missing_output_dir_is_an_error(ros_domain: DomainLease) -> None:
-    proc = spawn_node_process(["-m", "ird_ros.recorder"], domain=ros_domain, name="recorder-noout")
+    proc = spawn_node_process(["-m", "ird_ros.nodes.recorder"], domain=ros_domain, name="recorder-noout")
     assert proc.proc.wait(timeout=30) == 2
     proc.stop()
     assert "output_dir is required" in proc.output()

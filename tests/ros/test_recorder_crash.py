@@ -1,4 +1,4 @@
-"""A SIGKILLed ird_ros.recorder leaves a bag that loses at most the last second.
+"""A SIGKILLed ird_ros.nodes.recorder leaves a bag that loses at most the last second.
 
 The recorder (its own process, default ``flush_period``) records a PointStamped stream that
 this test publishes at a known rate, each message numbered in ``point.x``. Once the recorder
@@ -23,9 +23,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 
-from ird_ros import names
-from ird_ros.bag_repair import MAGIC
-from ird_ros.recorder import STATUS_TOPIC
+from ird_ros.bags.repair import MAGIC
+from ird_ros.graph import names
+from ird_ros.nodes.recorder import STATUS_TOPIC
 from ird_ros.testing import DomainLease, spawn_node_process, spin_until, wait_for_subscribers
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,7 +54,7 @@ def test_sigkill_loses_at_most_the_last_second(ros_node: Any, ros_domain: Domain
 
     out = tmp_path / "bag"
     proc = spawn_node_process(
-        ["-m", "ird_ros.recorder", "--ros-args", "-p", f"output_dir:={out}", "-p", f"topics:=[{TOPIC}]"],
+        ["-m", "ird_ros.nodes.recorder", "--ros-args", "-p", f"output_dir:={out}", "-p", f"topics:=[{TOPIC}]"],
         domain=ros_domain, name="recorder-crash", ready_text="recording")
     try:
         mcap_path = out / "bag.mcap"

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 import yaml
 
-from ird_core import lavaland, planning, world_file
+from ird_core import planning
 from ird_core.mdp import GridMDP
-from ird_core.terrain import Terrain
+from ird_core.worlds import lavaland, world_file
+from ird_core.worlds.terrain import Terrain
 
 REPO = Path(__file__).resolve().parents[2]
 WORLD = REPO / "worlds" / "figure1.yaml"
@@ -25,16 +26,16 @@ WORLD = REPO / "worlds" / "figure1.yaml"
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     import rclpy
-    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus, TerrainGrid
     from _mission import drive_ird_plan
-    from ird_msgs.srv import InferReward
     from nav_msgs.msg import OccupancyGrid
 
+    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus, TerrainGrid
+    from ird_msgs.srv import InferReward
     from ird_ros import conversions as conv
-    from ird_ros import names
-    from ird_ros.launcher import GraphLauncher, graph_specs
+    from ird_ros.graph import names
+    from ird_ros.launch.launcher import GraphLauncher, graph_specs
+    from ird_ros.nodes.world import TOPIC_INFER_REQUEST, with_world_file
     from ird_ros.testing import call_service, receive_messages, ros_context, wait_for_publishers
-    from ird_ros.world import TOPIC_INFER_REQUEST, with_world_file
 
     tmp = tmp_path_factory.mktemp("world_file")
     params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
@@ -129,11 +130,11 @@ def test_perception_classifies_a_gaussian_file_world(condition: str, tmp_path: P
     world_file, uses the file's classifier (latent_classifier: /terrain/features = the proxy's
     features) or one fitted on the file's observation model (seed instance.seed)."""
     import rclpy
-    from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 
-    from ird_core.observations import fit_classifier
+    from ird_core.worlds.observations import fit_classifier
+    from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
     from ird_ros import conversions as conv
-    from ird_ros import names
+    from ird_ros.graph import names
     from ird_ros.testing import lease_domain, ros_context, running_nodes, spin_until
 
     generated = lavaland.make_instance(condition, 5, size=(6, 7), horizon=8, obs_dim=8)
@@ -142,8 +143,8 @@ def test_perception_classifies_a_gaussian_file_world(condition: str, tmp_path: P
     params = str(REPO / "msgs_config" / "params" / "graph.yaml")
     args = ["--ros-args", "--params-file", params, "-p", f"world_file:={path}"]
     with lease_domain() as lease, ros_context(lease) as ctx, \
-            running_nodes(lease, ("world", ["-m", "ird_ros.world", *args]),
-                          ("perception", ["-m", "ird_ros.perception", *args])) as procs:
+            running_nodes(lease, ("world", ["-m", "ird_ros.nodes.world", *args]),
+                          ("perception", ["-m", "ird_ros.nodes.perception", *args])) as procs:
         node = rclpy.create_node("gauss_probe", context=ctx)
         try:
             got: dict[str, list] = {"proxy": [], "classes": [], "features": []}

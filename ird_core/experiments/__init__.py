@@ -1,0 +1,53 @@
+"""The paper s experiments (Figure 4, the appendix factorial) and the designer-in-the-loop experiment."""
+
+from __future__ import annotations
+
+from ird_core.experiments.trials import (
+    BASELINES,
+    GRANULARITIES,
+    MAIN_BASELINE,
+    MAIN_GRANULARITY,
+    QUICK,
+    RESULT_COLUMNS,
+    RUN_UNTIL_R_HAT,
+    TRIAL_COLUMNS,
+    Z_METHODS,
+    CellSummary,
+    SamplerSettings,
+    TrialResult,
+    TrialSpec,
+    aggregate,
+    gap_closed,
+    gap_share,
+    make_specs,
+    run_trial,
+    t_interval,
+    trial_instance,
+    trial_seed,
+    wilson_interval,
+)
+
+__all__ = [
+    "Z_METHODS",
+    "RUN_UNTIL_R_HAT",
+    "GRANULARITIES",
+    "BASELINES",
+    "MAIN_GRANULARITY",
+    "MAIN_BASELINE",
+    "SamplerSettings",
+    "TrialSpec",
+    "QUICK",
+    "TrialResult",
+    "CellSummary",
+    "trial_seed",
+    "trial_instance",
+    "make_specs",
+    "run_trial",
+    "wilson_interval",
+    "t_interval",
+    "gap_share",
+    "gap_closed",
+    "aggregate",
+    "RESULT_COLUMNS",
+    "TRIAL_COLUMNS",
+]

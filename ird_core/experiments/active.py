@@ -1,0 +1,320 @@
+"""The designer in the loop (IRD_SPEC.md section 7): does asking the designer a few questions
+recover what risk-averse IRD gives up? Pure numpy/scipy, no ROS, no parallelism (the script
+``scripts/run_active.py`` maps :func:`run_trial` over seeds).
+
+One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
+
+1. ``literal``: the proxy's optimal path on the test map (the floor, as in Figure 4).
+2. ``oracle``: the optimal path under the TRUE reward, i.e. the per-cell
+   :data:`ird_core.worlds.lavaland.TRUE_TERRAIN_REWARD` of the test map, by exact dynamic programming
+   (the ceiling: no path has a higher true return).
+3. IRD: the posterior given the proxy (MaxEnt-Z by default), the main IRD planner of the
+   experiments (``per_step`` x ``training_features``, exact DP on every sample). Then, per query
+   strategy (``info_gain``, ``random``), up to ``max(query_counts)`` rounds: propose a query of
+   ``num_options`` paths on the test map (the query world: the map the robot is about to drive,
+   where lava and gold are) from the current samples, let the simulated designer answer
+   (Boltzmann on each option's true return, ``designer_beta``), add the answer as a
+   ``ChoiceObservation`` (``choice_beta``) to all the evidence so far, re-sample the posterior
+   (warm-started from the previous one) and, at each count in ``query_counts``, plan again.
+   ``num_queries = 0`` is the same posterior and plan for both strategies.
+
+Pairing: both strategies start from the same posterior and, in round ``j``, use the same
+sampler and designer seeds (derived from the instance seed and ``j`` only), so they differ only
+in the questions asked. Every number is a pure function of the :class:`ActiveSpec`.
+
+When the posterior samples plan fewer distinct paths on the test map than ``num_options``
+there is nothing to ask (``queries.NotEnoughCandidates``): the round is skipped, the posterior
+and plan stay as they are, and the record says so (``asked`` counts the questions really
+asked).
+
+Choice model. The simulated designer answers by the Boltzmann rule on the options' true
+returns with ``designer_beta`` (default 1: a 1-unit better path is chosen with probability 0.73,
+a 3-unit better one with 0.95; lava costs 10, so lava questions are answered almost surely
+right). The robot's ``ChoiceObservation`` uses ``choice_beta``, by default the same number: the
+robot knows how reliable its designer is, and with ``w`` = the true weights (indicator
+conditions) its choice model is exactly the designer's. A path's feature counts span ``T + 1``
+cells, so one answer already moves the posterior by several prior standard deviations along
+the options' feature difference.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+from ird_core import experiments, mdp, planning, posterior
+from ird_core.designer import queries
+from ird_core.vocabulary import STRATEGIES
+from ird_core.worlds import lavaland
+
+__all__ = [
+    "STRATEGIES",
+    "QUERY_COUNTS",
+    "DEFAULT_DESIGNER_BETA",
+    "ActiveSpec",
+    "ActiveResult",
+    "ActiveSummary",
+    "SUMMARY_COLUMNS",
+    "RESULT_COLUMNS",
+    "make_specs",
+    "run_trial",
+    "aggregate",
+    "paired_difference",
+    "gap_closed",
+]
+
+QUERY_COUNTS: tuple[int, ...] = (0, 1, 2, 3, 5)
+DEFAULT_DESIGNER_BETA: float = 1.0
+
+
+# The Lavaland experiments' small settings, shared so that both experiments stay comparable.
+_SMALL = experiments.TrialSpec("side_effects", 0, **experiments.QUICK)
+
+
+@dataclass(frozen=True)
+class ActiveSpec:
+    """Everything one trial depends on. Sizes and sampler settings default to the experiments'
+    small settings (:data:`ird_core.experiments.QUICK`: 8x8, T = 12, ``obs_dim`` 10,
+    64 samples, beta 50, 4 chains), with MaxEnt-Z (its gradient is cheap)."""
+
+    condition: str
+    seed: int
+    size: int = _SMALL.size
+    horizon: int = _SMALL.horizon
+    obs_dim: int = _SMALL.obs_dim
+    num_samples: int = _SMALL.num_samples
+    beta: float = _SMALL.beta
+    prior_sigma: float = _SMALL.prior_sigma
+    method: str = "maxent_z"
+    num_chains: int = _SMALL.num_chains
+    warmup: int = _SMALL.warmup
+    thin: int = _SMALL.thin
+    max_leapfrog: int = _SMALL.max_leapfrog
+    # Warm-up of each re-sample after an answer; None: the library's ``DEFAULT_WARM_WARMUP`` (50
+    # for MaxEnt-Z). Measured on the latent conditions (seeds 0-4, 80 re-samples): 25 left 14% of
+    # them above split R-hat 1.1 (50: 4%) for 29% less CPU.
+    warm_warmup: "int | None" = None
+    query_counts: tuple[int, ...] = QUERY_COUNTS
+    strategies: tuple[str, ...] = STRATEGIES
+    num_options: int = 2
+    designer_beta: float = DEFAULT_DESIGNER_BETA
+    choice_beta: "float | None" = None  # None: designer_beta
+
+    @property
+    def answer_beta(self) -> float:
+        """The rationality the robot assumes for an answer."""
+        return self.designer_beta if self.choice_beta is None else float(self.choice_beta)
+
+    def __post_init__(self) -> None:
+        if self.condition not in lavaland.ALL_CONDITIONS:
+            raise ValueError(f"condition: expected one of {lavaland.ALL_CONDITIONS}, got {self.condition!r}")
+        counts = tuple(self.query_counts)
+        if not counts or any(not isinstance(c, (int, np.integer)) or c < 0 for c in counts) \
+                or list(counts) != sorted(set(counts)):
+            raise ValueError(f"query_counts: expected increasing non-negative integers, got {counts!r}")
+        for s in self.strategies:
+            if s not in STRATEGIES:
+                raise ValueError(f"strategies: expected a subset of {STRATEGIES}, got {s!r}")
+        if self.num_options < 2:
+            raise ValueError(f"num_options: expected >= 2, got {self.num_options}")
+        for name in ("designer_beta", "choice_beta"):
+            value = getattr(self, name)
+            if value is None and name == "choice_beta":
+                continue
+            if not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name}: expected a finite value >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class ActiveResult:
+    """One plan's outcome in one trial. ``strategy`` is ``literal``, ``oracle``, ``info_gain`` or
+    ``random``; ``num_queries`` the answers planned on (0 for literal and oracle), ``asked``
+    how many of them were real questions (fewer when the samples had nothing left to ask),
+    ``information_gain`` the mean expected information gain (nats) of the questions asked so far
+    (NaN if none), ``answers_correct`` how many answers picked an option of the highest true
+    return, ``r_hat_max`` the posterior's diagnostic (NaN for literal and oracle)."""
+
+    condition: str
+    seed: int
+    strategy: str
+    num_queries: int
+    asked: int
+    touched_lava: bool
+    reached_target: bool
+    reached_gold: bool
+    true_return: float
+    information_gain: float
+    answers_correct: int
+    r_hat_max: float
+    cells: tuple[tuple[int, int], ...]
+
+
+def make_specs(conditions: Iterable[str], trials: int, seed: int = 0, **settings) -> list[ActiveSpec]:
+    """``trials`` specs per condition (instance seeds ``seed + i``, paired across conditions)."""
+    return [ActiveSpec(c, experiments.trial_seed(seed, i), **settings) for c in conditions for i in range(trials)]
+
+
+def _seed(seed: int, *keys: int) -> int:
+    return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0] % (2**31))
+
+
+def _result(inst: lavaland.LavalandInstance, strategy: str, num_queries: int, cells, *, asked: int = 0,
+            gains: "list[float] | None" = None, correct: int = 0, r_hat: float = math.nan) -> ActiveResult:
+    labels = inst.test_labels
+    return ActiveResult(inst.condition, inst.seed, strategy, num_queries, asked,
+                        lavaland.touches_lava(labels, cells), lavaland.reaches_target(labels, cells),
+                        lavaland.reaches_gold(labels, cells), lavaland.true_return(labels, cells),
+                        float(np.mean(gains)) if gains else math.nan, correct, r_hat,
+                        tuple((int(r), int(c)) for r, c in cells))
+
+
+def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
+    """Literal, oracle, and per strategy the IRD plan after each count of answered queries."""
+    inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
+                                  obs_dim=spec.obs_dim)
+    test = lavaland.test_mdp(inst)
+    out = [_result(inst, "literal", 0, planning.plan_path(lavaland.test_mdp(inst, proxy=True),
+                                                          inst.proxy_weights[None], "literal").cells)]
+    true_cells = lavaland.TRUE_TERRAIN_REWARD[inst.test_labels].astype(np.float64)
+    out.append(_result(inst, "oracle", 0, mdp.optimal_path(test, true_cells)[0]))
+
+    # Sample-Z's proxy counts are computed once, in the proxy's own space (latent_classifier),
+    # and shared by every re-sample, like the proxy's own counts.
+    num_proxy = posterior.DEFAULT_NUM_PROXY_SAMPLES if spec.method == "sample_z" else None
+    proxy, = lavaland.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
+    reference = proxy.proxy_features / (inst.train_horizon + 1)
+    options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
+
+    def sample(evidence: list, round_index: int, initial: "posterior.Posterior | None") -> posterior.Posterior:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per result instead
+            return posterior.sample_joint_posterior(
+                evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
+                spec.prior_sigma, warmup=spec.warmup if initial is None else spec.warm_warmup, initial=initial,
+                **options)
+
+    def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
+        return planning.plan_path(test, post.samples, "per_step", experiments.MAIN_BASELINE, reference).cells
+
+    first = sample([proxy], 0, None)
+    first_cells = plan(first)
+    last = max(spec.query_counts)
+    for strategy_index, strategy in enumerate(spec.strategies):
+        post, cells, evidence = first, first_cells, [proxy]
+        gains: list[float] = []
+        correct = 0
+        for j in range(last + 1):
+            if j > 0:
+                try:
+                    query = queries.propose_query(test, post.samples, spec.answer_beta, spec.num_options,
+                                                  strategy, seed=_seed(inst.seed, 2, j))
+                except queries.NotEnoughCandidates:
+                    query = None  # the samples agree on the plan: nothing to ask
+                if query is not None:
+                    returns = np.array([lavaland.true_return(inst.test_labels, c) for c in query.option_cells])
+                    designer = np.random.default_rng(_seed(inst.seed, 3, j))
+                    chosen = queries.simulated_answer(returns, spec.designer_beta, designer)
+                    correct += bool(returns[chosen] == returns.max())
+                    gains.append(float(query.information_gain))
+                    evidence = evidence + [posterior.ChoiceObservation(query.option_features, chosen,
+                                                                       spec.answer_beta)]
+                    post = sample(evidence, j, post)
+                    cells = plan(post)
+            if j in spec.query_counts:
+                out.append(_result(inst, strategy, j, cells, asked=len(gains), gains=gains, correct=correct,
+                                   r_hat=post.r_hat_max))
+    return out
+
+
+# --------------------------------------------------------------------------- aggregation
+
+SUMMARY_COLUMNS: tuple[str, ...] = (
+    "condition", "strategy", "num_queries", "trials", "lava_fraction", "lava_ci_low", "lava_ci_high",
+    "target_fraction", "target_ci_low", "target_ci_high", "gold_fraction", "gold_ci_low", "gold_ci_high",
+    "mean_return", "return_ci_low", "return_ci_high", "mean_asked", "mean_information_gain",
+    "answers_correct_fraction", "max_r_hat", "nonconverged")
+
+RESULT_COLUMNS: tuple[str, ...] = (
+    "condition", "seed", "strategy", "num_queries", "asked", "touched_lava", "reached_target",
+    "reached_gold", "true_return", "information_gain", "answers_correct", "r_hat_max", "cells")
+
+
+@dataclass(frozen=True)
+class ActiveSummary:
+    """One (condition, strategy, num_queries) cell: fractions with 95% Wilson intervals, the
+    mean true return with a 95% Student-t interval (``ird_core.experiments``' helpers)."""
+
+    condition: str
+    strategy: str
+    num_queries: int
+    trials: int
+    lava_fraction: float
+    lava_ci_low: float
+    lava_ci_high: float
+    target_fraction: float
+    target_ci_low: float
+    target_ci_high: float
+    gold_fraction: float
+    gold_ci_low: float
+    gold_ci_high: float
+    mean_return: float
+    return_ci_low: float
+    return_ci_high: float
+    mean_asked: float
+    mean_information_gain: float
+    answers_correct_fraction: float
+    max_r_hat: float
+    nonconverged: int
+
+
+def aggregate(results: Iterable[ActiveResult]) -> list[ActiveSummary]:
+    """One summary per (condition, strategy, num_queries), in first-seen order."""
+    groups: dict[tuple[str, str, int], list[ActiveResult]] = {}
+    for r in results:
+        groups.setdefault((r.condition, r.strategy, r.num_queries), []).append(r)
+    out = []
+    for (condition, strategy, count), rs in groups.items():
+        n = len(rs)
+        fractions = []
+        for flag in ("touched_lava", "reached_target", "reached_gold"):
+            k = sum(getattr(r, flag) for r in rs)
+            fractions += [k / n, *experiments.wilson_interval(k, n)]
+        gains = [r.information_gain for r in rs if not math.isnan(r.information_gain)]
+        asked = sum(r.asked for r in rs)
+        rhats = [r.r_hat_max for r in rs if not math.isnan(r.r_hat_max)]
+        out.append(ActiveSummary(
+            condition, strategy, count, n, *fractions, *experiments.t_interval([r.true_return for r in rs]),
+            asked / n, float(np.mean(gains)) if gains else math.nan,
+            sum(r.answers_correct for r in rs) / asked if asked else math.nan,
+            max(rhats) if rhats else math.nan, sum(rh > posterior.R_HAT_CONVERGED for rh in rhats)))
+    return out
+
+
+def _returns_by_seed(results: Iterable[ActiveResult], condition: str, strategy: str, count: int) -> dict[int, float]:
+    return {r.seed: r.true_return for r in results
+            if r.condition == condition and r.strategy == strategy and r.num_queries == count}
+
+
+def paired_difference(results: "list[ActiveResult]", condition: str, a: tuple[str, int],
+                      b: tuple[str, int]) -> tuple[float, float, float, int]:
+    """Mean per-trial difference of true return, ``(strategy, count)`` ``a`` minus ``b``, on the
+    seeds both have: ``(mean, ci_low, ci_high, n)`` with a 95% Student-t interval."""
+    ra, rb = _returns_by_seed(results, condition, *a), _returns_by_seed(results, condition, *b)
+    seeds = sorted(set(ra) & set(rb))
+    return (*experiments.t_interval([ra[s] - rb[s] for s in seeds]), len(seeds))
+
+
+def gap_closed(summaries: "list[ActiveSummary]", condition: str, strategy: str, count: int) -> float:
+    """Share of the literal-to-oracle mean-return gap that ``strategy`` after ``count`` queries
+    closes: ``(R - R_literal) / (R_oracle - R_literal)`` (1 = oracle, 0 = literal, negative =
+    below literal; NaN without the three cells or with no gap)."""
+    by = {(s.condition, s.strategy, s.num_queries): s.mean_return for s in summaries}
+    try:
+        low, high, value = by[condition, "literal", 0], by[condition, "oracle", 0], by[condition, strategy, count]
+    except KeyError:
+        return math.nan
+    return experiments.gap_share(low, high, value)

@@ -1,0 +1,533 @@
+"""Lavaland experiments (IRD_SPEC.md section 5): literal vs IRD, Sample-Z vs MaxEnt-Z, and the
+appendix factorial of min-granularity x reward baseline. Pure numpy/scipy, no ROS.
+
+One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
+
+1. ``literal``: the proxy's optimal path on the proxy's test features (for latent_classifier the
+   classifier outputs with the designer's weights), ``planning.plan_path(mode="literal")``
+   (the floor).
+2. ``oracle``: the optimal path under the TRUE reward (the instance's ``true_terrain_reward`` per
+   test cell), by exact dynamic programming: the ceiling, no path has a higher true return. A
+   world file without true rewards has no oracle row.
+3. For each Z-approximation (``sample_z``, ``maxent_z``): ONE posterior (seeded from the trial
+   seed and the method), then from the same samples
+   - the main-experiment IRD planner (Figure 4): :data:`MAIN_GRANULARITY` x
+     :data:`MAIN_BASELINE` = ``per_step`` x ``training_features``. Why: it is the combination the
+     paper's appendix recommends (the per-step min is the more robust granularity, the training
+     features baseline the best baseline), it is solved exactly by dynamic programming on all
+     ``K`` samples (no MILP, no subsample), so the main result does not depend on a solver
+     time limit;
+   - the factorial: ``per_step`` and ``trajectory`` x ``initial_state``, ``training_features``,
+     ``log_z``, BOTH granularities on the same first ``factorial_samples`` posterior samples
+     (draw-major pooled, so spread over the chains), so the granularity effect is not confounded
+     with the number of samples. ``trajectory`` is the exact label search of
+     ``ird_core.planning`` with a per-plan work limit (``traj_work_limit`` label expansions, not
+     seconds, so a trial is the same on any machine); if the solver does not prove optimality
+     within it, the trial falls back to the ``per_step`` plan of the same samples and baseline
+     and is flagged (``fallback``), counted in the aggregated table.
+4. Outcomes on the executed path (Rob executes plans exactly, so the executed path is the
+   plan's cells): touched lava, reached a target, true return (``ird_core.worlds.lavaland``).
+
+Seeding: trial ``i`` of a run with seed ``S`` uses instance seed ``S + i`` for every condition
+(conditions are paired by seed, see ``lavaland``), the Sample-Z proxy prior features and the
+posterior sampler get seeds derived with ``numpy.random.SeedSequence([trial_seed, k])`` (for
+Lavaland the trial seed is the instance seed).
+A trial is a pure function of its :class:`TrialSpec`, so results do not depend on the number
+of workers or the order in which trials finish.
+
+World files (``TrialSpec.world``, ``scripts/run_experiments.py --world FILE``): the trial runs
+on the file's instance (:func:`ird_core.worlds.world_file.load_world`; its size, horizons and
+observations are the file's) and the posterior is the joint one over every training world of
+the file (``lavaland.proxy_observations``, IRD_SPEC 7). The world is fixed, so the trials of a
+file differ only in the trial seed ``S + i``, which seeds the sampler and the Sample-Z proxies:
+they measure how the outcome varies with the posterior's randomness, not with the map. The true
+return uses the file's true rewards (NaN when the file gives none).
+
+Aggregation (:func:`aggregate`): fractions with 95% Wilson score intervals, mean true return
+with a 95% Student-t interval, and for every IRD planner the share of the literal-to-oracle
+return gap it closes (:func:`gap_closed`) with a 95% paired bootstrap interval over trials.
+
+Settings: :class:`TrialSpec`'s defaults are the paper's scale (15x15 maps, T = 30, 50-d
+observations); :data:`QUICK` is the small setting for a fast look (8x8, T = 12, 10-d). The
+sampler settings can differ per Z-approximation (:class:`SamplerSettings`,
+``TrialSpec.sample_z_sampler`` / ``maxent_z_sampler``; ``None`` = the shared fields).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+from scipy import stats
+
+from ird_core import mcmc, mdp, planning, posterior
+from ird_core.vocabulary import Baseline, PlanMode, ZMethod
+from ird_core.worlds import lavaland, world_file
+
+__all__ = [
+    "Z_METHODS",
+    "RUN_UNTIL_R_HAT",
+    "GRANULARITIES",
+    "BASELINES",
+    "MAIN_GRANULARITY",
+    "MAIN_BASELINE",
+    "SamplerSettings",
+    "TrialSpec",
+    "QUICK",
+    "TrialResult",
+    "CellSummary",
+    "trial_seed",
+    "trial_instance",
+    "make_specs",
+    "run_trial",
+    "wilson_interval",
+    "t_interval",
+    "gap_share",
+    "gap_closed",
+    "aggregate",
+    "RESULT_COLUMNS",
+    "TRIAL_COLUMNS",
+]
+
+#: The factorial's levels, in the order of the report's rows and columns.
+Z_METHODS: tuple[str, ...] = (ZMethod.SAMPLE_Z.value, ZMethod.MAXENT_Z.value)
+GRANULARITIES: tuple[str, ...] = (PlanMode.PER_STEP.value, PlanMode.TRAJECTORY.value)
+BASELINES: tuple[str, ...] = (Baseline.INITIAL_STATE.value, Baseline.TRAINING_FEATURES.value, Baseline.LOG_Z.value)
+MAIN_GRANULARITY = PlanMode.PER_STEP.value
+MAIN_BASELINE = Baseline.TRAINING_FEATURES.value
+
+
+#: Split R-hat at which a run-until-converged posterior stops (``SamplerSettings.max_iterations``):
+#: below the reported threshold ``posterior.R_HAT_CONVERGED`` (1.1), so that stopping at the
+#: first good check does not put the reported values just under it.
+RUN_UNTIL_R_HAT: float = 1.05
+#: Iterations per chain between a run-until-converged posterior's checks after its first
+#: (``posterior.RunUntil.check_every``). Measured post hoc on 320-iteration d = 50 Sample-Z runs
+#: (seeds 0-5 of both latent conditions): blocks of 16 instead of 64 stop the same runs after
+#: 7-13% fewer gradient evaluations, at the same R-hat threshold.
+CHECK_EVERY: int = 16
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """One Z-approximation's MCMC settings (``posterior.sample_joint_posterior``'s keywords).
+
+    ``max_iterations`` 0: a fixed-length run (``thin * ceil(num_samples / num_chains)``
+    iterations per chain after warm-up). Above 0: the same run, then extended until split R-hat
+    ``<= RUN_UNTIL_R_HAT`` and bulk ESS ``>= num_samples / 2`` or ``max_iterations`` iterations
+    per chain (``posterior.RunUntil``; no time budget, so a trial stays a pure function of its
+    spec and reproduces bit for bit on any machine).
+
+    ``kernel``: one of ``mcmc.KERNELS``. ``small``, if set, replaces these settings for weight
+    spaces of at most ``small_dim`` dimensions (:meth:`for_dim`). ``give_up_after``: 0, or stop
+    a run whose split R-hat is still above ``posterior.GIVE_UP_R_HAT`` after that many
+    iterations (``posterior.RunUntil.give_up_after``). ``warmup_max_leapfrog``,
+    ``trajectory_length``: the sampler's HMC options of those names (0: its defaults).
+    ``check_every``: iterations between convergence checks after the first
+    (``posterior.RunUntil.check_every``; 0: its default); every default below checks every
+    :data:`CHECK_EVERY`.
+
+    The defaults, measured on Sample-Z at beta 50 (15x15, T = 30):
+
+    - d <= 10 (side_effects, reward_hacking): 8 chains, 200 warm-up iterations, up to 2000, of
+      ``independence_elliptical`` (a t-proposal jump around the fitted Gaussian, then a slice
+      move). On the experiment's first 40 posteriors per condition at 100 proxies it converged
+      39 and 40 (at 1000 proxies, the first 20: 20 and 20) in
+      124 and 149 s in all (the default run's timings); the elliptical kernel alone at the same
+      settings 39 and 40 in 136 and 179 s (two processes, as in the run), with three runs at the
+      cap instead of one (``bench_inference.py --levers``
+      on seeds 0-5: both 12 of 12, elliptical 1.4x the ESS per second). Most of the gain over
+      the earlier 100 warm-up iterations and cap 600 (93 and 92 of 100) is the longer run.
+    - d = 50: HMC (4 chains), 100 warm-up iterations (at most 32 leapfrog steps each until the
+      final buffer), then trajectories of 2.5 preconditioned units of at most 64 steps, up to 300
+      iterations, checked every 16; runs still above R-hat 1.4 after 50 iterations give up. With
+      150 warm-up iterations and checks every 64 these settings converged latent_raw at the
+      experiments' 1000 proxies (96 of 100, 2563 CPU s for the cell). On seeds 6-17 of both
+      latent conditions, with checks every 16, 100 warm-up iterations met the run's R-hat <= 1.05
+      in 24 of 24 at 16.9 CPU s per posterior, 150 in 23 of 24 at 19.3 s (two processes, one run).
+      The default run with these settings: latent_raw 96 of 100 in 1852 CPU s.
+      At 100 proxies no sampler tried converges within any affordable budget (README,
+      Benchmarks), which is why the experiments use 1000.
+    """
+
+    num_chains: int
+    warmup: int
+    thin: int
+    max_leapfrog: int
+    max_iterations: int = 0
+    kernel: str = "hmc"
+    small_dim: int = 0
+    small: "SamplerSettings | None" = None
+    give_up_after: int = 0
+    warmup_max_leapfrog: int = 0  # 0: the sampler's default
+    trajectory_length: float = 0.0  # 0: the sampler's default
+    check_every: int = 0  # 0: the sampler's default (posterior.RunUntil.check_every)
+
+    def __post_init__(self) -> None:
+        for name in ("num_chains", "thin", "max_leapfrog"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        for name in ("warmup", "max_iterations", "small_dim", "give_up_after", "warmup_max_leapfrog", "check_every"):
+            if int(getattr(self, name)) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not (math.isfinite(self.trajectory_length) and self.trajectory_length >= 0):
+            raise ValueError(f"trajectory_length must be a finite number >= 0, got {self.trajectory_length!r}")
+        if self.kernel not in mcmc.KERNELS:
+            raise ValueError(f"kernel must be one of {mcmc.KERNELS}, got {self.kernel!r}")
+
+    def for_dim(self, dim: int) -> "SamplerSettings":
+        """The settings for a ``dim``-dimensional weight space: ``small`` up to ``small_dim``."""
+        return self.small if self.small is not None and dim <= self.small_dim else self
+
+    def run_until(self) -> "posterior.RunUntil | None":
+        """The ``until_converged`` criteria, or None for a fixed-length run."""
+        if self.max_iterations == 0:
+            return None
+        return posterior.RunUntil(r_hat=RUN_UNTIL_R_HAT, min_ess=0.0, ess_per_sample=0.5,
+                                  max_iterations=self.max_iterations, give_up_after=self.give_up_after,
+                                  check_every=self.check_every)
+
+    def options(self) -> dict:
+        """These settings as ``posterior.sample_joint_posterior``'s keyword arguments."""
+        return dict(num_chains=self.num_chains, warmup=self.warmup, thin=self.thin, max_leapfrog=self.max_leapfrog,
+                    until_converged=self.run_until(), kernel=self.kernel,
+                    warmup_max_leapfrog=self.warmup_max_leapfrog or None,
+                    trajectory_length=self.trajectory_length or None)
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """Everything one trial depends on (a trial is a pure function of this).
+
+    Defaults are the experiment defaults of ``scripts/run_experiments.py``: the paper's scale
+    (15x15 maps, T = 30, 50-d observations); :data:`QUICK` holds the small setting.
+    ``num_chains``, ``warmup``, ``thin``, ``max_leapfrog`` are shared by both Z-approximations
+    unless ``sample_z_sampler`` / ``maxent_z_sampler`` give that method its own
+    (:meth:`sampler`). Every method returns ``num_samples`` draws (the main IRD planner uses all
+    of them); the factorial uses the first ``factorial_samples`` for both granularities.
+    """
+
+    condition: str
+    seed: int
+    size: int = 15
+    horizon: int = 30
+    obs_dim: int = 50
+    num_samples: int = 64
+    beta: float = 50.0
+    prior_sigma: float = 1.0
+    num_chains: int = 4
+    warmup: int = 50
+    thin: int = 4
+    max_leapfrog: int = 16
+    num_proxy_samples: int = posterior.DEFAULT_NUM_PROXY_SAMPLES  # 1000: Sample-Z converges (see SamplerSettings)
+    factorial_samples: int = 16
+    traj_work_limit: int = 50_000
+    z_methods: tuple[str, ...] = Z_METHODS
+    factorial: bool = True
+    world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
+    sample_z_sampler: SamplerSettings | None = SamplerSettings(
+        4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
+        check_every=CHECK_EVERY,
+        small=SamplerSettings(8, 200, 4, 32, 2000, kernel="independence_elliptical", check_every=CHECK_EVERY))
+    maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000, check_every=CHECK_EVERY)
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.factorial_samples <= self.num_samples:
+            raise ValueError(f"factorial_samples must be in 1..num_samples={self.num_samples}, "
+                             f"got {self.factorial_samples!r}")
+        for method in self.z_methods:
+            if method not in Z_METHODS:
+                raise ValueError(f"z_methods must be drawn from {Z_METHODS}, got {method!r}")
+        limit = self.traj_work_limit
+        if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+            raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
+
+    def sampler(self, method: str) -> SamplerSettings:
+        """``method``'s sampler settings: its own field if set, else the shared ones."""
+        own = getattr(self, f"{method}_sampler")
+        return own if own is not None else SamplerSettings(self.num_chains, self.warmup, self.thin, self.max_leapfrog)
+
+
+#: The small setting for a fast look (``run_experiments.py --quick``; ``ird_core.experiments.active``'s defaults).
+QUICK: dict = {"size": 8, "horizon": 12, "obs_dim": 10, "num_samples": 64, "num_chains": 4, "warmup": 50, "thin": 4,
+               "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_work_limit": 1_000_000,
+               "sample_z_sampler": None, "maxent_z_sampler": None}
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """One planner's outcome in one trial."""
+
+    experiment: str  # "main" or "factorial"
+    condition: str
+    seed: int
+    planner: str  # "literal", "ird_sample_z", ... or "sample_z/per_step/log_z"
+    z_approx: str  # "" for literal
+    granularity: str  # "literal", "per_step" or "trajectory"
+    baseline: str  # "none" for literal
+    touched_lava: bool
+    reached_target: bool
+    true_return: float
+    objective: float
+    solver: str
+    fallback: bool
+    infer_seconds: float
+    r_hat_max: float
+    acceptance_rate: float
+    cells: tuple[tuple[int, int], ...]
+
+
+def trial_seed(base_seed: int, index: int) -> int:
+    """Instance seed of trial ``index``: ``base_seed + index`` (paired across conditions)."""
+    return int(base_seed) + int(index)
+
+
+def make_specs(conditions: Iterable[str], trials: int, seed: int, **settings) -> list[TrialSpec]:
+    """Specs of ``trials`` trials per condition, ordered condition-major."""
+    return [TrialSpec(condition=c, seed=trial_seed(seed, i), **settings)
+            for c in conditions for i in range(trials)]
+
+
+def _derived_seed(seed: int, *keys: int) -> int:
+    return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0])
+
+
+def _outcome(inst: lavaland.LavalandInstance, cells) -> tuple[bool, bool, float]:
+    labels = inst.test_labels
+    rewards = inst.true_terrain_reward
+    return lavaland.touches_lava(labels, cells), lavaland.reaches_target(labels, cells), \
+        (math.nan if rewards is None else lavaland.true_return(labels, cells, rewards))
+
+
+def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) -> posterior.Posterior:
+    """The joint posterior over the instance's training worlds (one for Lavaland)."""
+    method_index = Z_METHODS.index(method) + 1
+    sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
+    observations = lavaland.proxy_observations(
+        inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
+        spec.prior_sigma)
+    settings = spec.sampler(method).for_dim(observations[0].dim)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
+        return posterior.sample_joint_posterior(
+            observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
+            **settings.options())
+
+
+def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
+    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``."""
+    if spec.world:
+        return world_file.load_world(spec.world)
+    return lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
+                                  obs_dim=spec.obs_dim)
+
+
+def run_trial(spec: TrialSpec) -> list[TrialResult]:
+    """Run one trial: literal and oracle plans, and per Z-approximation one posterior and its IRD plans."""
+    inst = trial_instance(spec)
+    results: list[TrialResult] = []
+    literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
+    results.append(TrialResult("main", spec.condition, spec.seed, "literal", "", "literal", "none",
+                               *_outcome(inst, literal.cells), literal.objective, literal.solver, False,
+                               0.0, math.nan, math.nan, literal.cells))
+    test = lavaland.test_mdp(inst)
+    if inst.true_terrain_reward is not None:
+        true_cells = np.asarray(inst.true_terrain_reward, dtype=np.float64)[inst.test_labels]
+        cells, value = mdp.optimal_path(test, true_cells)
+        oracle = tuple((int(r), int(c)) for r, c in cells)
+        results.append(TrialResult("main", spec.condition, spec.seed, "oracle", "", "oracle", "none",
+                                   *_outcome(inst, oracle), value, "dp", False, 0.0, math.nan, math.nan, oracle))
+    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    for method in spec.z_methods:
+        t0 = time.perf_counter()
+        post = _posterior(spec, inst, method)
+        seconds = time.perf_counter() - t0
+        diag = (seconds, post.r_hat_max, post.acceptance_rate)
+        main = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference)
+        results.append(TrialResult("main", spec.condition, spec.seed, f"ird_{method}", method,
+                                   MAIN_GRANULARITY, MAIN_BASELINE, *_outcome(inst, main.cells),
+                                   main.objective, main.solver, False, *diag, main.cells))
+        if spec.factorial:
+            plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_work_limit)
+            for (gran, base), (plan, fallback) in plans.items():
+                results.append(TrialResult("factorial", spec.condition, spec.seed, f"{method}/{gran}/{base}",
+                                           method, gran, base, *_outcome(inst, plan.cells), plan.objective,
+                                           plan.solver, fallback, *diag, plan.cells))
+    return results
+
+
+def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarray, work_limit: int
+                     ) -> dict[tuple[str, str], tuple[planning.Plan, bool]]:
+    """Every granularity x baseline plan of the same ``(N, d)`` samples, with its fallback flag
+    (the trajectory solver hit ``work_limit`` label expansions: the per_step plan of the same
+    samples stands in). A work limit, not a time limit, so a trial is the same on any machine."""
+    plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}
+    for base in BASELINES:
+        plans["per_step", base] = (planning.plan_path(test, samples, "per_step", base, reference), False)
+    for base in BASELINES:
+        try:
+            plans["trajectory", base] = (planning.plan_path(test, samples, "trajectory", base, reference,
+                                                            work_limit=work_limit), False)
+        except RuntimeError:
+            plans["trajectory", base] = (plans["per_step", base][0], True)
+    return plans
+
+
+# --------------------------------------------------------------------------- statistics
+
+
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion; ``(nan, nan)`` for ``n = 0``."""
+    if n <= 0:
+        return math.nan, math.nan
+    if not 0 <= successes <= n:
+        raise ValueError(f"successes must be in 0..{n}, got {successes}")
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    p = successes / n
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return low, high
+
+
+def t_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:
+    """``(mean, low, high)``: Student-t interval of the mean (``low = high = mean`` if n = 1)."""
+    x = np.asarray(values, dtype=np.float64)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    mean = float(x.mean())
+    if x.size == 1:
+        return mean, mean, mean
+    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return mean, mean - half, mean + half
+
+
+def gap_share(literal: float | np.ndarray, oracle: float | np.ndarray, planner: float | np.ndarray
+              ) -> float | np.ndarray:
+    """Share of the literal-to-oracle gap a planner closes, ``(planner - literal) / (oracle -
+    literal)`` (1 = oracle, 0 = literal, negative = below literal); NaN where ``oracle <= literal``
+    (no gap to close). Elementwise on broadcastable arrays of mean returns."""
+    literal, oracle, planner = (np.asarray(v, dtype=np.float64) for v in (literal, oracle, planner))
+    gap = oracle - literal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(gap > 0, (planner - literal) / np.where(gap > 0, gap, 1.0), np.nan)
+    return float(share) if share.ndim == 0 else share
+
+
+def gap_closed(literal: Sequence[float], oracle: Sequence[float], planner: Sequence[float], seed: int = 0,
+               resamples: int = 2000, confidence: float = 0.95) -> tuple[float, float, float]:
+    """``(share, low, high)``: :func:`gap_share` of the mean true returns of paired trials and its
+    percentile bootstrap interval.
+
+    Args:
+        literal, oracle, planner: ``(n,)`` true returns, entry ``i`` of each from the same trial.
+        seed: seeds the bootstrap (same inputs and seed, same interval).
+        resamples: bootstrap resamples ``B``; each draws ``n`` trial indices with replacement and
+            keeps the three planners' returns of a trial together (paired).
+    Returns:
+        the share and the ``confidence`` percentile interval of the resampled shares (resamples
+        without a gap are dropped); all NaN when ``n = 0`` or the mean gap is ``<= 0``.
+    """
+    arrays = [np.asarray(v, dtype=np.float64).reshape(-1) for v in (literal, oracle, planner)]
+    if len({a.size for a in arrays}) != 1:
+        raise ValueError("literal, oracle, planner: must have the same length (paired trials), got "
+                         f"{[a.size for a in arrays]}")
+    x = np.stack(arrays)  # (3, n)
+    if resamples < 1:
+        raise ValueError(f"resamples must be >= 1, got {resamples!r}")
+    n = x.shape[1]
+    share = gap_share(*x.mean(axis=1)) if n else math.nan
+    if math.isnan(share):
+        return math.nan, math.nan, math.nan
+    index = np.random.default_rng(seed).integers(0, n, size=(resamples, n))  # (B, n)
+    boot = gap_share(*x[:, index].mean(axis=2))  # (B,)
+    boot = boot[~np.isnan(boot)]
+    if boot.size == 0:
+        return share, math.nan, math.nan
+    alpha = 100 * (1 - confidence) / 2
+    low, high = np.percentile(boot, [alpha, 100 - alpha])
+    return share, float(low), float(high)
+
+
+RESULT_COLUMNS: tuple[str, ...] = (
+    "experiment", "condition", "planner", "z_approx", "granularity", "baseline", "trials",
+    "lava_fraction", "lava_ci_low", "lava_ci_high", "target_fraction", "target_ci_low",
+    "target_ci_high", "mean_true_return", "return_ci_low", "return_ci_high", "gap_closed", "gap_ci_low",
+    "gap_ci_high", "fallbacks",
+    "mean_infer_seconds", "max_r_hat", "nonconverged")
+
+TRIAL_COLUMNS: tuple[str, ...] = (
+    "experiment", "condition", "seed", "planner", "z_approx", "granularity", "baseline",
+    "touched_lava", "reached_target", "true_return", "objective", "solver", "fallback",
+    "infer_seconds", "r_hat_max", "acceptance_rate", "cells")
+
+
+@dataclass(frozen=True)
+class CellSummary:
+    experiment: str
+    condition: str
+    planner: str
+    z_approx: str
+    granularity: str
+    baseline: str
+    trials: int
+    lava_fraction: float
+    lava_ci_low: float
+    lava_ci_high: float
+    target_fraction: float
+    target_ci_low: float
+    target_ci_high: float
+    mean_true_return: float
+    return_ci_low: float
+    return_ci_high: float
+    gap_closed: float  # share of the literal-to-oracle gap (gap_closed()); NaN for literal and oracle
+    gap_ci_low: float
+    gap_ci_high: float
+    fallbacks: int
+    mean_infer_seconds: float
+    max_r_hat: float
+    nonconverged: int
+
+    def row(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def _paired_gap(groups: dict, condition: str, rs: list[TrialResult]) -> tuple[float, float, float]:
+    """:func:`gap_closed` of IRD results ``rs`` against the main literal and oracle of their
+    condition, over the seeds all three have; NaN without them (literal and oracle rows too)."""
+    literal, oracle = groups.get(("main", condition, "literal")), groups.get(("main", condition, "oracle"))
+    if not rs[0].z_approx or literal is None or oracle is None:
+        return math.nan, math.nan, math.nan
+    by = [{r.seed: r.true_return for r in g} for g in (literal, oracle, rs)]
+    seeds = sorted(set(by[0]) & set(by[1]) & set(by[2]))
+    return gap_closed(*([b[s] for s in seeds] for b in by))
+
+
+def aggregate(results: Iterable[TrialResult]) -> list[CellSummary]:
+    """One summary per (experiment, condition, planner), in first-seen order."""
+    groups: dict[tuple[str, str, str], list[TrialResult]] = {}
+    for r in results:
+        groups.setdefault((r.experiment, r.condition, r.planner), []).append(r)
+    out = []
+    for (experiment, condition, planner), rs in groups.items():
+        n = len(rs)
+        lava = sum(r.touched_lava for r in rs)
+        target = sum(r.reached_target for r in rs)
+        mean, lo, hi = t_interval([r.true_return for r in rs])
+        gap = _paired_gap(groups, condition, rs)
+        rhats = [r.r_hat_max for r in rs if not math.isnan(r.r_hat_max)]
+        out.append(CellSummary(
+            experiment, condition, planner, rs[0].z_approx, rs[0].granularity, rs[0].baseline, n,
+            lava / n, *wilson_interval(lava, n), target / n, *wilson_interval(target, n), mean, lo, hi, *gap,
+            sum(r.fallback for r in rs),
+            float(np.mean([r.infer_seconds for r in rs])),
+            max(rhats) if rhats else math.nan,
+            sum(rh > posterior.R_HAT_CONVERGED for rh in rhats)))
+    return out

@@ -1,0 +1,39 @@
+"""Grid MDPs and exact maximum-entropy trajectory inference on them (docs/spec.md sections 1-2)."""
+
+from __future__ import annotations
+
+from ird_core.mdp.passes import (
+    MOVES,
+    GridMDP,
+    cell_rewards,
+    expected_visitation,
+    feature_expectations,
+    hard_values,
+    log_partition,
+    log_partition_and_feature_expectations,
+    optimal_path,
+    path_features,
+    path_return,
+    soft_values,
+    successor_table,
+    validate_path,
+    warm_up,
+)
+
+__all__ = [
+    "MOVES",
+    "GridMDP",
+    "cell_rewards",
+    "soft_values",
+    "log_partition",
+    "expected_visitation",
+    "feature_expectations",
+    "hard_values",
+    "optimal_path",
+    "successor_table",
+    "path_features",
+    "path_return",
+    "validate_path",
+    "warm_up",
+    "log_partition_and_feature_expectations",
+]

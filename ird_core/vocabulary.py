@@ -1,0 +1,132 @@
+"""The project's vocabulary: every name that selects a behaviour, defined once as a ``StrEnum``.
+
+Members are ``str`` subclasses, so they compare equal to the strings on the wire (ROS messages,
+CSV columns, command-line options) and format as their value. The tuples beside each enum
+(``METHODS``, ``MODES``, ...) list the plain values in the enum's order, for error messages
+and ``argparse`` choices. Code that receives a name from outside converts it with
+:func:`parse`, which refuses unknown names naming the field.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import TypeVar
+
+__all__ = [
+    "ZMethod",
+    "PlanMode",
+    "Baseline",
+    "RiskStatistic",
+    "QueryStrategy",
+    "Condition",
+    "QueryEvent",
+    "TerrainName",
+    "METHODS",
+    "MODES",
+    "BASELINES",
+    "STATISTICS",
+    "STRATEGIES",
+    "CONDITIONS",
+    "ALL_CONDITIONS",
+    "EVENTS",
+    "TERRAIN_NAMES",
+    "values",
+    "parse",
+]
+
+
+class ZMethod(StrEnum):
+    """How the IRD observation model's normaliser Z~(w) is approximated (docs/spec.md section 3)."""
+
+    MAXENT_Z = "maxent_z"
+    SAMPLE_Z = "sample_z"
+
+
+class PlanMode(StrEnum):
+    """What the planner optimises (docs/spec.md section 4): the proxy literally, or the worst case
+    over posterior samples per step or per trajectory (the granularity)."""
+
+    LITERAL = "literal"
+    PER_STEP = "per_step"
+    TRAJECTORY = "trajectory"
+
+
+class Baseline(StrEnum):
+    """The reward baseline subtracted per sample before the worst case (docs/spec.md section 4)."""
+
+    NONE = "none"
+    INITIAL_STATE = "initial_state"
+    TRAINING_FEATURES = "training_features"
+    LOG_Z = "log_z"
+
+
+class RiskStatistic(StrEnum):
+    """The spread of the samples' cell rewards that the risk map shows."""
+
+    STD = "std"
+    RANGE = "range"
+
+
+class QueryStrategy(StrEnum):
+    """How the robot picks the question it asks the designer (docs/spec.md section 7)."""
+
+    INFO_GAIN = "info_gain"
+    RANDOM = "random"
+
+
+class Condition(StrEnum):
+    """Lavaland's conditions (docs/spec.md section 5): the paper's four, then pot_of_gold."""
+
+    SIDE_EFFECTS = "side_effects"
+    REWARD_HACKING = "reward_hacking"
+    LATENT_RAW = "latent_raw"
+    LATENT_CLASSIFIER = "latent_classifier"
+    POT_OF_GOLD = "pot_of_gold"
+
+
+class QueryEvent(StrEnum):
+    """What happened to a question: the robot proposed it, the designer answered it."""
+
+    PROPOSED = "proposed"
+    ANSWERED = "answered"
+
+
+class TerrainName(StrEnum):
+    """Terrain names, in the order of ``ird_core.worlds.terrain.Terrain``'s integer labels."""
+
+    DIRT = "dirt"
+    GRASS = "grass"
+    TARGET = "target"
+    LAVA = "lava"
+    GOLD = "gold"
+
+
+E = TypeVar("E", bound=StrEnum)
+
+
+def values(enum: type[StrEnum]) -> tuple[str, ...]:
+    """The members' plain string values, in definition order."""
+    return tuple(member.value for member in enum)
+
+
+def parse(enum: type[E], value: object, field: str) -> E:
+    """``value`` as a member of ``enum``; a ``ValueError`` naming ``field`` and the choices if it
+    is not one of them."""
+    if isinstance(value, str):
+        try:
+            return enum(value)
+        except ValueError:
+            pass
+    raise ValueError(f"{field}: expected one of {values(enum)}, got {value!r}")
+
+
+METHODS: tuple[str, ...] = values(ZMethod)
+MODES: tuple[str, ...] = values(PlanMode)
+BASELINES: tuple[str, ...] = values(Baseline)
+STATISTICS: tuple[str, ...] = values(RiskStatistic)
+STRATEGIES: tuple[str, ...] = values(QueryStrategy)
+ALL_CONDITIONS: tuple[str, ...] = values(Condition)
+CONDITIONS: tuple[str, ...] = ALL_CONDITIONS[:4]
+"""The paper's four conditions (every experiment iterates these); ``ALL_CONDITIONS`` adds pot_of_gold."""
+EVENTS: tuple[str, ...] = values(QueryEvent)
+TERRAIN_NAMES: tuple[str, ...] = values(TerrainName)

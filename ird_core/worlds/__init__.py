@@ -1,0 +1,9 @@
+"""Worlds: terrain maps, the Gaussian observation model, Lavaland instances, world files.
+
+Worlds never import the posterior: they describe maps, proxies and the true reward; the
+posterior package builds its observations from them (docs/spec.md section 5).
+
+Modules: ``terrain`` (labels and the seeded map sampler), ``observations`` (Gaussian cell
+observations and the safe-terrain classifier), ``lavaland`` (the paper's conditions and
+pot_of_gold), ``world_file`` (worlds from YAML + PNG files).
+"""

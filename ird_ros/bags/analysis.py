@@ -1,0 +1,189 @@
+"""Analysis of the stack's rosbag2 (MCAP) bags without ROS, and the old import path of its parts.
+
+``analyze(bag, out_dir)`` is the whole analysis behind ``scripts/analyze_bag.py``: the
+per-topic summary, Rob's missions with their outcomes, per-label statistics and (with
+``out_dir``) PNG plots. The work is done by three modules, re-exported here so that
+``from ird_ros.bags.analysis import ...`` keeps working:
+
+- :mod:`ird_ros.bags.storage`: the ``rosbags`` typestore (Jazzy + the repository's ``ird_msgs``),
+  decoded messages, per-topic summary.
+- :mod:`ird_ros.bags.missions`: pure mission segmentation on decoded messages (no ROS, no
+  rosbags), the small decoders and the label statistics.
+- :mod:`ird_ros.bags.plots`: the matplotlib plots.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from rosbags.typesys.store import Typestore
+
+from ird_ros.graph import names
+from ird_ros.bags.storage import (
+    REPO_MSG_ROOT,
+    BagMessage,
+    TopicSummary,
+    find_msg_files,
+    iter_messages,
+    make_typestore,
+    msg_types_from_files,
+    read_messages,
+    referenced_types,
+    register_type,
+    summarize,
+)
+from ird_ros.bags.plots import plot_posterior, plot_query_rounds, plot_returns, plot_trajectories
+from ird_ros.bags.missions import (
+    MISSION_TOPICS,
+    Mission,
+    Terrain,
+    label_statistics,
+    latest_before,
+    missions_from_messages,
+    odom_xy,
+    path_cells,
+    path_xy,
+    polyline_length,
+    stamp_ns,
+    terrain_from_msg,
+)
+from ird_ros.bags.rounds import Round, event_from_msg, round_summary, rounds_from_events
+
+__all__ = [
+    "REPO_MSG_ROOT",
+    "BagMessage",
+    "TopicSummary",
+    "Mission",
+    "Terrain",
+    "find_msg_files",
+    "msg_types_from_files",
+    "make_typestore",
+    "register_type",
+    "referenced_types",
+    "iter_messages",
+    "read_messages",
+    "summarize",
+    "extract_missions",
+    "label_statistics",
+    "latest_before",
+    "terrain_from_msg",
+    "path_xy",
+    "path_cells",
+    "odom_xy",
+    "polyline_length",
+    "stamp_ns",
+    "plot_trajectories",
+    "plot_returns",
+    "plot_posterior",
+    "extract_query_rounds",
+    "analyze",
+]
+
+
+def extract_missions(bag: str | Path, messages: dict[str, list[BagMessage]] | None = None) -> list[Mission]:
+    """The missions of a bag (see :mod:`ird_ros.bags.missions` for how they are segmented).
+
+    ``messages``, if given, are the bag's already decoded messages (``read_messages``).
+    """
+    if messages is None:
+        messages = read_messages(bag, MISSION_TOPICS)
+    return missions_from_messages(messages)
+
+
+def extract_query_rounds(messages: dict[str, list[BagMessage]]) -> tuple[list[Round], Terrain | None]:
+    """The rounds of /ird/queries (poses mapped to cells on the latest /world/terrain's grid) and
+    that terrain (None without one: a 1 m grid at the origin)."""
+    terrains = messages.get(names.TOPIC_TERRAIN, [])
+    records = messages.get(names.TOPIC_QUERIES, [])
+    terrain = terrain_from_msg(terrains[-1].msg) if terrains else None
+    res, origin = (terrain.resolution, terrain.origin) if terrain is not None else (1.0, (0.0, 0.0))
+    return rounds_from_events(event_from_msg(r.msg, resolution=res, origin=origin) for r in records), terrain
+
+
+def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Typestore | None = None) -> dict[str, Any]:
+    """Summary, missions, the designer's rounds (``query_rounds``: :func:`round_summary` rows) and
+    (with ``out_dir``) PNG plots of a bag, as a JSON-able dict.
+
+    Plots: ``trajectories_<i>.png`` (one per distinct terrain the missions ran on; without
+    any /world/terrain just the paths), ``true_return.png``, ``posterior.png`` (latest
+    /ird/posterior) and ``query_rounds.png`` (each question's options on the map), each only
+    when the bag holds what it needs.
+    """
+    bag = Path(bag)
+    store = typestore or make_typestore()
+    topics = summarize(bag)
+    messages = read_messages(bag, [*MISSION_TOPICS, names.TOPIC_TERRAIN, names.TOPIC_POSTERIOR,
+                                   names.TOPIC_QUERIES], store)
+    missions = missions_from_messages(messages)
+    rounds, rounds_terrain = extract_query_rounds(messages)
+    firsts = [t.first_ns for t in topics if t.first_ns is not None]
+    lasts = [t.last_ns for t in topics if t.last_ns is not None]
+    start_ns = min(firsts) if firsts else 0
+    end_ns = max(lasts) if lasts else 0
+
+    plots: list[str] = []
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        terrains = messages.get(names.TOPIC_TERRAIN, [])
+        groups: dict[int, list[Mission]] = defaultdict(list)
+        for m in missions:
+            tidx = latest_before(terrains, m.start_ns)
+            groups[-1 if tidx is None else tidx].append(m)
+        if not missions and terrains:
+            groups[len(terrains) - 1] = []
+        for n, (tidx, ms) in enumerate(sorted(groups.items())):
+            terrain = terrain_from_msg(terrains[tidx].msg) if tidx >= 0 else None
+            title = f"Rob's trajectories on terrain #{tidx}" if tidx >= 0 else "Rob's trajectories"
+            plots.append(str(plot_trajectories(ms, terrain, out / f"trajectories_{n}.png", title)))
+        if any(len(m.status_returns) for m in missions):
+            plots.append(str(plot_returns(missions, start_ns, out / "true_return.png")))
+        if messages.get(names.TOPIC_POSTERIOR):
+            plots.append(str(plot_posterior(messages[names.TOPIC_POSTERIOR][-1].msg, out / "posterior.png")))
+        if rounds:
+            plots.append(str(plot_query_rounds(rounds, rounds_terrain, out / "query_rounds.png")))
+
+    return {
+        "bag": str(bag),
+        "start_ns": start_ns,
+        "end_ns": end_ns,
+        "duration_s": (end_ns - start_ns) / 1e9,
+        "topics": [
+            {
+                "topic": t.topic,
+                "type": t.msgtype,
+                "count": t.count,
+                "first_s": None if t.first_ns is None else (t.first_ns - start_ns) / 1e9,
+                "last_s": None if t.last_ns is None else (t.last_ns - start_ns) / 1e9,
+                "rate_hz": t.rate_hz,
+                "durability": t.durability,
+            }
+            for t in topics
+        ],
+        "missions": [
+            {
+                "index": m.index,
+                "label": m.label,
+                "mode": m.mode,
+                "baseline": m.baseline,
+                "objective": m.objective,
+                "start_s": (m.start_ns - start_ns) / 1e9,
+                "plan_moves": m.plan_moves,
+                "plan_length_m": m.plan_length_m,
+                "executed_length_m": m.executed_length_m,
+                "executed_moves": m.executed_moves,
+                "steps": m.steps,
+                "horizon": m.horizon,
+                "done": m.done,
+                "touched_lava": m.touched_lava,
+                "reached_target": m.reached_target,
+                "true_return": m.true_return,
+            }
+            for m in missions
+        ],
+        "labels": label_statistics(missions),
+        "query_rounds": [round_summary(r, start_ns) for r in rounds],
+        "plots": plots,
+    }

@@ -1,0 +1,85 @@
+"""numpy <-> ROS messages of the designer conversation (ProposeQuery, AnswerQuery, QueryRecord).
+
+Re-exported by :mod:`ird_ros.conversions` (use ``conv.X``). Decoding a QueryRecord is
+:func:`ird_ros.bags.rounds.event_from_msg` (ROS-free, shared with the bag analysis).
+"""
+
+from __future__ import annotations
+
+import array
+from typing import Any, Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from nav_msgs.msg import Path
+
+from ird_msgs.msg import QueryRecord
+from ird_ros.bags.rounds import EVENTS, PROPOSED, QueryEvent, event_from_msg
+from ird_ros.conversions.grids import MAP_FRAME, _as_float_array, _check_finite, _check_names, _f, make_header
+
+__all__ = ["options_to_paths", "query_record_to_msg", "query_record_from_msg"]
+
+
+def options_to_paths(
+    option_cells: Sequence[np.ndarray],
+    *,
+    resolution: float = 1.0,
+    origin: Sequence[float] = (0.0, 0.0),
+    height: int | None = None,
+    width: int | None = None,
+    stamp: Time | None = None,
+) -> list[Path]:
+    """One nav_msgs/Path per option ((T+1, 2) cells each), poses at cell centres."""
+    from ird_ros.conversions import cells_to_path  # conversions re-exports this module
+
+    return [cells_to_path(cells, resolution=resolution, origin=origin, height=height, width=width, stamp=stamp)
+            for cells in option_cells]
+
+
+def query_record_to_msg(
+    *,
+    query_id: int,
+    event: str,
+    strategy: str,
+    options: Sequence[Path],
+    feature_names: Sequence[str],
+    option_features: np.ndarray,
+    information_gain: float,
+    chosen: int = -1,
+    beta: float = 0.0,
+    answered_by: str = "",
+    num_answers: int = 0,
+    stamp: Time | None = None,
+    frame_id: str = MAP_FRAME,
+) -> QueryRecord:
+    """A QueryRecord; ``option_features`` (q, d) with q = ``len(options)``, d = ``len(feature_names)``."""
+    field = "QueryRecord"
+    if event not in EVENTS:
+        raise _f(f"{field}.event", f"must be one of {list(EVENTS)}, got {event!r}")
+    names = _check_names(f"{field}.feature_names", feature_names)
+    feats = _as_float_array(f"{field}.option_features", option_features, np.float64)
+    if feats.shape != (len(options), len(names)):
+        raise _f(f"{field}.option_features", f"expected shape ({len(options)}, {len(names)}), got {feats.shape}")
+    _check_finite(f"{field}.option_features", feats)
+    if event != PROPOSED and not 0 <= int(chosen) < len(options):
+        raise _f(f"{field}.chosen", f"{chosen} is out of range for {len(options)} options")
+    msg = QueryRecord()
+    msg.header = make_header(stamp, frame_id)
+    msg.query_id = int(query_id)
+    msg.event = event
+    msg.strategy = str(strategy)
+    msg.options = list(options)
+    msg.feature_names = list(names)
+    msg.option_features = array.array("d", np.ascontiguousarray(feats).tobytes())
+    msg.information_gain = float(information_gain)
+    msg.chosen = int(chosen) if event != PROPOSED else -1
+    msg.beta = float(beta)
+    msg.answered_by = str(answered_by)
+    msg.num_answers = int(num_answers)
+    return msg
+
+
+def query_record_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float] = (0.0, 0.0),
+                          field: str = "QueryRecord") -> QueryEvent:
+    """Decode a QueryRecord (see :func:`ird_ros.bags.rounds.event_from_msg`)."""
+    return event_from_msg(msg, resolution=resolution, origin=origin, field=field)

@@ -1,0 +1,138 @@
+"""The IRD ROS graph as data: which node runs from which module, what it publishes and serves.
+
+For the launcher (start order, readiness) and for documentation. Data only: no ROS import.
+
+Readiness of a node (what a launcher waits for before it calls the node "up"):
+
+- every service in ``services`` is discovered (``client.service_is_ready()``), and
+- a message was received on every topic in ``ready_topics`` (they are transient local, so a
+  subscriber with ``names.latched_qos()`` gets the latest one whenever it joins), and
+- if both are empty, the node's name is in the graph (``get_node_names_and_namespaces``).
+
+``ready_topics`` only appear once the node's inputs exist: perception publishes after the
+world did; the planner's risk map needs a posterior, so it is not a readiness topic.
+``after`` lists the nodes whose output a node needs before it can become ready (start order).
+
+Every node logs ``<name> ready`` (``ird_ros.runtime.node_main.run_node``) when it starts spinning: its
+publishers, subscriptions and services exist and, for inference and planner, the worker process
+has started and imported ``ird_core``. Measured process start to that line on the 2-core dev
+machine while other jobs kept it busy (load average 5-10): world 1.4-3.5 s
+(15x15, builds and publishes the first world before it is ready), perception 1.8-2.1 s (then
+its outputs follow about 0.3 s after the world's maps), inference 2.5-3.6 s and planner
+1.7-3.2 s (both include the worker process start), rob 0.4-0.8 s. SIGINT/SIGTERM to exit:
+0.2-0.8 s, exit code 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ird_ros.graph import names
+
+__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "PARAMS_FILE"]
+
+PARAMS_FILE = "msgs_config/params/graph.yaml"
+"""The one parameter file of the graph, relative to the repository root. The parameters' defaults
+live in each node module's ``PARAMETERS`` table (``ird_ros.runtime.node_params``); the file repeats them
+for whoever edits it, and ``tests/test_graph_params.py`` keeps the two in step."""
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the graph.
+
+    Attributes:
+        name: node name (``/name`` in the graph, key in graph.yaml).
+        module: run with ``python -m <module> --ros-args --params-file <PARAMS_FILE>``.
+        publishes: topics the node publishes (see ``names.TOPIC_TYPES`` / ``names.TOPIC_QOS``).
+        subscribes: topics it reads.
+        services: services it serves.
+        ready_topics: latched topics on which a message must have arrived.
+        after: nodes whose output this node needs to become ready.
+        default: started when no node list is given (``GraphLauncher(nodes=None)``,
+            ``scripts/launch_graph.py`` without ``--nodes``); the designer is off by default.
+    """
+
+    name: str
+    module: str
+    publishes: tuple[str, ...]
+    subscribes: tuple[str, ...]
+    services: tuple[str, ...]
+    ready_topics: tuple[str, ...]
+    after: tuple[str, ...] = ()
+    default: bool = True
+
+
+NODES: tuple[NodeSpec, ...] = (
+    NodeSpec(
+        name=names.NODE_WORLD,
+        module="ird_ros.nodes.world",
+        publishes=(
+            names.TOPIC_TRAIN_FEATURES,
+            names.TOPIC_TEST_FEATURES,
+            names.TOPIC_TRAIN_PROXY_FEATURES,
+            names.TOPIC_TERRAIN,
+            names.TOPIC_PROXY,
+            names.TOPIC_INFER_REQUEST,
+        ),
+        subscribes=(),
+        services=(names.SRV_GENERATE,),
+        ready_topics=(names.TOPIC_PROXY,),
+    ),
+    NodeSpec(
+        name=names.NODE_PERCEPTION,
+        module="ird_ros.nodes.perception",
+        publishes=(names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TERRAIN_FEATURES),
+        subscribes=(names.TOPIC_TEST_FEATURES, names.TOPIC_PROXY),
+        services=(),
+        ready_topics=(names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TERRAIN_FEATURES),
+        after=(names.NODE_WORLD,),
+    ),
+    NodeSpec(
+        name=names.NODE_INFERENCE,
+        module="ird_ros.nodes.inference",
+        publishes=(names.TOPIC_POSTERIOR, names.TOPIC_QUERIES),
+        subscribes=(names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES, names.TOPIC_PROXY),
+        services=(names.SRV_INFER, names.SRV_QUERY, names.SRV_ANSWER),
+        ready_topics=(),
+    ),
+    NodeSpec(
+        name=names.NODE_PLANNER,
+        module="ird_ros.nodes.planner",
+        publishes=(names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_RISK_MAP),
+        subscribes=(
+            names.TOPIC_TEST_FEATURES,
+            names.TOPIC_TERRAIN_FEATURES,
+            names.TOPIC_TRAIN_FEATURES,
+            names.TOPIC_TRAIN_PROXY_FEATURES,
+            names.TOPIC_PROXY,
+            names.TOPIC_POSTERIOR,
+        ),
+        services=(names.SRV_PLAN,),
+        ready_topics=(),
+    ),
+    NodeSpec(
+        name=names.NODE_ROB,
+        module="ird_ros.nodes.rob",
+        publishes=(names.TOPIC_ODOM, names.TOPIC_ROB_STATUS),
+        subscribes=(names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_TERRAIN, names.TOPIC_PROXY),
+        services=(),
+        ready_topics=(),
+    ),
+    NodeSpec(
+        # Answers the robot's questions (/ird/queries -> /ird/answer): simulated, or a person on a
+        # web page; a calling client (the demo) starts it with --nodes or nodes=[...].
+        name=names.NODE_DESIGNER,
+        module="ird_ros.nodes.designer",
+        publishes=(),
+        subscribes=(names.TOPIC_QUERIES, names.TOPIC_TERRAIN, names.TOPIC_PROXY, names.TOPIC_POSTERIOR,
+                    names.TOPIC_RISK_MAP),
+        services=(),
+        ready_topics=(),
+        default=False,
+    ),
+)
+
+NODES_BY_NAME: dict[str, NodeSpec] = {spec.name: spec for spec in NODES}
+DEFAULT_NODES: tuple[str, ...] = tuple(spec.name for spec in NODES if spec.default)
+"""The nodes started when no node list is given."""

@@ -1,0 +1,308 @@
+"""Is a launched node ready? An rclpy probe node that reads the ROS graph (no fixed sleeps).
+
+``GraphProbe`` runs a node (``launcher``) in its own rclpy context in the graph's domain; the
+launcher spins it and asks, for each starting node, what is still ``missing`` (an empty list:
+ready). A node is ready when all of these hold:
+
+1. its name is in the graph (``get_node_names_and_namespaces``);
+2. every service of its ``services`` is listed for it (``get_service_names_and_types_by_node``);
+3. every topic of its ``publishes`` has a publisher endpoint owned by it
+   (``get_publishers_info_by_topic``) that no earlier process of that node owned (a GID not
+   seen before: DDS keeps a SIGKILLed node's endpoints in the graph until its lease expires,
+   about 20 s, and a respawned node must be judged by its own endpoints);
+4. a message arrived on every topic of its ``ready_topics`` after the process started
+   (latched topics: the probe subscribes transient local), unless the caller says not to
+   wait for them.
+
+The recorder (``recorded`` topics given) is ready when it is in the graph, subscribes to each
+of those topics, and, for each of them that is latched (transient local) and on which the
+probe itself received a message, its ``/recorder/status`` counts at least one recorded
+message; ``recorder_lag`` lists the latched messages still missing from the bag.
+
+``ReadinessMonitor`` runs the probe in a thread next to an ``ird_ros.launch.supervisor.Supervisor``:
+it checks every ``starting`` child, calls ``Supervisor.mark_ready`` once nothing is missing,
+and keeps the recorder's lag up to date after the recorder was ready.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import os
+import threading
+import time
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+from ird_ros.launch.supervisor import ChildInfo, ChildState, Supervisor
+
+if TYPE_CHECKING:
+    from ird_ros.launch.launcher import LaunchSpec
+
+__all__ = ["GraphProbe", "ReadinessMonitor", "PROBE_NODE"]
+
+PROBE_NODE = "launcher"
+
+
+@contextlib.contextmanager
+def _temp_env(values: Mapping[str, str]) -> Iterator[None]:
+    """``os.environ`` updated with ``values`` inside the block (rclpy.init reads ROS_* there)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+class GraphProbe:
+    """The readiness probe (see the module docstring); not thread-safe: one thread uses it.
+
+    Args:
+        domain_id: the graph's ROS domain.
+        env: the children's environment (its discovery range and log dir apply to the probe).
+        recorder_status: also follow ``/recorder/status`` (for ``recorder_lag``).
+    """
+
+    def __init__(self, domain_id: int, env: Mapping[str, str], recorder_status: bool = False) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self._ctx = Context()
+        keys = {k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR") if k in env}
+        with _temp_env(keys):
+            rclpy.init(context=self._ctx, domain_id=int(domain_id), signal_handler_options=SignalHandlerOptions.NO)
+            self._node = rclpy.create_node(PROBE_NODE, context=self._ctx, start_parameter_services=False,
+                                           enable_rosout=False)
+        self._executor = SingleThreadedExecutor(context=self._ctx)
+        self._executor.add_node(self._node)
+        self._subs: dict[str, Any] = {}
+        self._received: dict[str, float] = {}  # topic -> monotonic time of the last message
+        self._latched: dict[str, bool] = {}  # topic -> every publisher offers transient local
+        self._recorder_counts: dict[str, int] = {}
+        self._gids: dict[str, dict[int, set]] = {}  # node -> pid -> publisher GIDs it owned
+        if recorder_status:
+            self._follow_recorder_status()
+
+    def _follow_recorder_status(self) -> None:
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import String
+
+        from ird_ros.nodes.recorder import STATUS_TOPIC
+
+        def status(msg: Any) -> None:
+            with contextlib.suppress(ValueError, AttributeError, KeyError, TypeError):
+                self._recorder_counts = dict(json.loads(msg.data)["counts"])
+
+        self._node.create_subscription(String, STATUS_TOPIC, status, QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def spin_once(self, timeout: float) -> None:
+        """Handle one ROS event (message, discovery) or return after ``timeout`` s."""
+        self._executor.spin_once(timeout_sec=timeout)
+
+    def present(self) -> set[tuple[str, str]]:
+        """``(name, namespace)`` of every node in the graph."""
+        return set(self._node.get_node_names_and_namespaces())
+
+    def _watch_topic(self, topic: str) -> None:
+        """Subscribe (raw, QoS matching the publishers) once the topic's type is visible."""
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+        types = dict(self._node.get_topic_names_and_types()).get(topic)
+        infos = self._node.get_publishers_info_by_topic(topic)
+        if not types or not infos:
+            return
+        pkg, kind, name = types[0].split("/")
+        msg_class = getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+        transient = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+        reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=1,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE,
+        )
+
+        def got(_raw: bytes) -> None:
+            self._received[topic] = time.monotonic()
+
+        self._subs[topic] = self._node.create_subscription(msg_class, topic, got, qos, raw=True)
+        self._latched[topic] = transient
+
+    def missing(
+        self,
+        spec: "LaunchSpec",
+        pid: int,
+        started_at: float,
+        present: set[tuple[str, str]],
+        *,
+        wait_topics: bool = True,
+        recorded: Sequence[str] | None = None,
+    ) -> list[str]:
+        """What the process ``pid`` of ``spec`` still lacks to be ready (empty list: ready).
+
+        ``started_at``: its ``time.monotonic()`` start (messages before it do not count);
+        ``present``: ``present()``; ``wait_topics``: require its ``ready_topics``;
+        ``recorded``: the topics it must record (the recorder only).
+        """
+        node = self._node
+        name = spec.name
+        missing: list[str] = []
+        if (name, "/") not in present:
+            return [f"node /{name} not in the graph"]
+        if spec.services:
+            served = {s for s, _t in node.get_service_names_and_types_by_node(name, "/")}
+            missing += [f"service {s} not available" for s in spec.services if s not in served]
+        by_pid = self._gids.setdefault(name, {})
+        earlier = set().union(*(g for p, g in by_pid.items() if p != pid))
+        for topic in spec.publishes:
+            own = {tuple(i.endpoint_gid) for i in node.get_publishers_info_by_topic(topic)
+                   if i.node_name == name and i.node_namespace == "/"}
+            new = own - earlier
+            if not new:
+                missing.append(f"no publisher of {topic} from /{name}" + (" (new instance)" if own else ""))
+            by_pid.setdefault(pid, set()).update(new)
+        if wait_topics:
+            for topic in spec.ready_topics:
+                if topic not in self._subs:
+                    self._watch_topic(topic)
+                if self._received.get(topic, -1.0) < started_at:
+                    missing.append(f"no message on {topic} yet")
+        if recorded is not None:
+            for topic in recorded:
+                subs = node.get_subscriptions_info_by_topic(topic)
+                if not any(i.node_name == name for i in subs):
+                    missing.append(f"not subscribed to {topic}")
+                    continue
+                if topic not in self._subs:
+                    self._watch_topic(topic)
+            missing += self.recorder_lag(recorded)
+        return missing
+
+    def recorder_lag(self, recorded: Sequence[str]) -> list[str]:
+        """Latched messages that exist (the probe received one) but are not in the bag yet."""
+        return [
+            f"latched message on {topic} not recorded yet"
+            for topic in recorded
+            if self._latched.get(topic) and topic in self._received and self._recorder_counts.get(topic, 0) == 0
+        ]
+
+    def close(self) -> None:
+        """Shut the executor, node and context down (errors ignored: used while stopping)."""
+        with contextlib.suppress(Exception):
+            self._executor.shutdown(timeout_sec=1.0)
+        with contextlib.suppress(Exception):
+            self._node.destroy_node()
+        with contextlib.suppress(Exception):
+            self._ctx.try_shutdown()
+
+
+class ReadinessMonitor:
+    """Marks the supervisor's starting children ready when the probe finds nothing missing.
+
+    Args:
+        supervisor: runs the children named in ``specs``.
+        specs: what each child must offer (``LaunchSpec`` by name).
+        domain_id, env: as for ``GraphProbe``.
+        skip_ready_topics: children not to wait for on their ``ready_topics``.
+        recorder: the recorder's name, if one runs, and ``recorded``: the topics it must record.
+        on_change: called (without locks held) after every check that may change an answer.
+    """
+
+    def __init__(
+        self,
+        supervisor: Supervisor,
+        specs: Mapping[str, "LaunchSpec"],
+        domain_id: int,
+        env: Mapping[str, str],
+        *,
+        skip_ready_topics: Iterable[str] = (),
+        recorder: str | None = None,
+        recorded: Sequence[str] = (),
+        on_change: Callable[[], None] = lambda: None,
+    ) -> None:
+        self._sup = supervisor
+        self._specs = dict(specs)
+        self._skip = set(skip_ready_topics)
+        self._recorder = recorder
+        self._recorded = list(recorded)
+        self._on_change = on_change
+        self._probe = GraphProbe(domain_id, env, recorder_status=recorder is not None)
+        self._lock = threading.Lock()
+        self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
+        self._lag: list[str] = []
+        self._error: BaseException | None = None
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="readiness", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def missing(self, name: str, pid: int | None) -> list[str]:
+        """What the process ``pid`` of ``name`` lacked at the last check."""
+        with self._lock:
+            seen_pid, what = self._missing.get(name, (None, []))
+        return list(what) if seen_pid == pid else ["process started"]
+
+    def recorder_lag(self) -> list[str]:
+        """Latched messages not in the bag yet (checked once the recorder was ready)."""
+        with self._lock:
+            return list(self._lag)
+
+    @property
+    def error(self) -> BaseException | None:
+        """Why the probe thread ended early (None while it runs or after ``close``)."""
+        with self._lock:
+            return self._error
+
+    def _run(self) -> None:
+        try:
+            while not self._closing.is_set():
+                self._probe.spin_once(0.05)
+                infos = self._sup.infos()
+                self._check([i for i in infos.values() if i.state is ChildState.STARTING])
+                rec = infos.get(self._recorder) if self._recorder is not None else None
+                if rec is not None and rec.state is ChildState.READY:
+                    lag = self._probe.recorder_lag(self._recorded)
+                    with self._lock:
+                        self._lag = lag
+                    self._on_change()
+        except BaseException as exc:  # noqa: BLE001 - surfaced through ``error``
+            if not self._closing.is_set():
+                with self._lock:
+                    self._error = exc
+            self._on_change()
+
+    def _check(self, starting: list[ChildInfo]) -> None:
+        if not starting:
+            return
+        present = self._probe.present()
+        for info in starting:
+            assert info.pid is not None
+            try:
+                missing = self._probe.missing(
+                    self._specs[info.name], info.pid, info.started_at, present,
+                    wait_topics=info.name not in self._skip,
+                    recorded=self._recorded if info.name == self._recorder else None)
+            except Exception as exc:  # noqa: BLE001 - e.g. the node left the graph meanwhile
+                missing = [f"graph query failed: {exc}"]
+            with self._lock:
+                self._missing[info.name] = (info.pid, missing)
+            if not missing:
+                self._sup.mark_ready(info.name, info.pid)
+            self._on_change()
+
+    def close(self) -> None:
+        """End the thread and the probe."""
+        self._closing.set()
+        if self._thread.is_alive():
+            self._thread.join(2.0)
+        self._probe.close()

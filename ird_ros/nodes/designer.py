@@ -1,0 +1,286 @@
+"""The designer node: answers the robot's questions (``/ird/queries`` -> ``/ird/answer``).
+
+Run: ``python -m ird_ros.nodes.designer --ros-args --params-file msgs_config/params/graph.yaml
+[-p mode:=web]``; off by default in the launcher (``scripts/launch_graph.py --nodes ...,designer``).
+
+It reads the latched history of ``/ird/queries`` (``names.history_qos()``), so a respawned
+designer sees every recent proposal and answers those still open; an answer it already sent
+and that is still being re-sampled is not sent twice (an answer from a previous life of the
+node is refused by the inference node as "already answered" or "busy" and changes nothing).
+Records stamped before the current ``/world/terrain`` belong to a forgotten world and are ignored
+(the inference node forgets the evidence with the world).
+
+- ``mode: simulated``: each open query is answered with ``ird_core.designer.queries.SimulatedDesigner
+  (beta, seed)`` on the options' TRUE returns (:func:`ird_ros.bags.rounds.option_returns`: the
+  ground-truth terrain of ``/world/terrain`` and the per-terrain true rewards of ``/world/proxy``),
+  ``answered_by: "simulated"``. A ``busy`` refusal is retried after ``retry_period``; any other
+  refusal (a forgotten world's query) is final.
+- ``mode: web``: ``ird_ros.web.server.WebDesigner`` serves a page on ``host:port`` in its own
+  thread; the node forwards proposals, answers, the world and the posterior/risk map to it and
+  its clicks come back through ``on_answer(query_id, chosen)``, which calls ``/ird/answer``
+  (``answered_by: "web"``) with ``Client.call`` from the web server's thread (the executor keeps
+  spinning in the main thread and completes the call). Contract: the dicts of
+  :mod:`ird_ros.bags.rounds` (``record_dict``) and :func:`world_dict`, :func:`posterior_dict`,
+  :func:`risk_dict` here.
+
+The node never blocks an executor callback: simulated answers are ``call_async`` with a done
+callback.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from nav_msgs.msg import OccupancyGrid
+from rclpy.node import Node
+
+from ird_core.designer.queries import SimulatedDesigner
+from ird_msgs.msg import ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
+from ird_msgs.srv import AnswerQuery
+from ird_ros import conversions as conv
+from ird_ros.bags import rounds as qr
+from ird_ros.graph import names
+from ird_ros.runtime.node_main import exit_process, run_node
+from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.offload import service_qos
+
+__all__ = ["DesignerNode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict", "main"]
+
+MODES = ("simulated", "web")
+
+PARAMETERS: dict[str, Param] = {
+    "mode": Param("simulated", "simulated: answer every open query itself; web: a person answers on a page",
+                  choices=MODES, read_only=True),
+    "beta": Param(1.0, "Simulated designer's rationality (Boltzmann beta on the options' true returns)",
+                  min_value=0.0),
+    "seed": Param(0, "Seed of the simulated designer's choices", min_value=0, max_value=2**32 - 1, read_only=True),
+    "host": Param("127.0.0.1", "Web page address (loopback by default)", read_only=True),
+    "port": Param(8765, "Web page port (0 = any free port)", min_value=0, max_value=65535, read_only=True),
+    "answer_timeout": Param(120.0, "Seconds an answer may take (re-sampling) before it is given up",
+                            min_value=0.1),
+    "retry_period": Param(1.0, "Seconds before a simulated answer refused as busy is sent again", min_value=0.01),
+}
+
+
+HISTORY_SETTLE = 0.2
+"""Seconds without a new /ird/queries record before open proposals are answered."""
+
+
+def _stamp_s(stamp: Any) -> float:
+    return int(stamp.sec) + int(stamp.nanosec) * 1e-9
+
+
+def _stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def world_dict(terrain: conv.TerrainGridData, start: tuple[int, int] | None, stamp: float) -> dict[str, Any]:
+    """The page's map: ``classes[row][col]`` (row 0 = bottom), class names, Rob's start."""
+    h, w = terrain.classes.shape
+    return {"height": h, "width": w, "class_names": list(terrain.class_names),
+            "classes": terrain.classes.astype(int).tolist(), "start": None if start is None else list(start),
+            "stamp": stamp}
+
+
+def posterior_dict(post: conv.PosteriorData, num_answers: int, stamp: float) -> dict[str, Any]:
+    """The page's posterior summary: per-feature mean and standard deviation of the samples."""
+    return {"feature_names": list(post.feature_names), "mean": post.samples.mean(axis=0).tolist(),
+            "std": post.samples.std(axis=0).tolist(), "num_samples": int(post.samples.shape[0]),
+            "num_answers": int(num_answers), "method": post.method, "converged": bool(post.converged),
+            "r_hat_max": float(post.r_hat_max) if np.isfinite(post.r_hat_max) else None, "stamp": stamp}
+
+
+def risk_dict(costs: np.ndarray, stamp: float) -> dict[str, Any]:
+    """The page's risk map: ``values[row][col]`` in 0..100 (-1 unknown)."""
+    h, w = costs.shape
+    return {"height": h, "width": w, "values": costs.astype(int).tolist(), "stamp": stamp}
+
+
+class DesignerNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(names.NODE_DESIGNER, **kwargs)
+        p = declare_all(self, PARAMETERS)
+        self.mode = p["mode"]
+        self.answer_timeout, self.retry_period = float(p["answer_timeout"]), float(p["retry_period"])
+        self.designer = SimulatedDesigner(float(p["beta"]), int(p["seed"]))
+        self.records: list[QueryRecord] = []  # every /ird/queries message, in arrival order
+        self._events_key: tuple[int, int] | None = None
+        self._events: list[qr.QueryEvent] = []
+        self.terrain: conv.TerrainGridData | None = None
+        self.terrain_ns = 0  # header stamp (ns) of the world's terrain
+        self.proxy: ProxyReward | None = None
+        self.posterior: RewardPosterior | None = None
+        self.risk: OccupancyGrid | None = None
+        self._in_flight: set[tuple[int, int]] = set()  # (query_id, proposal stamp) being answered
+        self._done: set[tuple[int, int]] = set()  # answered by us, or refused for good
+        self._shown: set[tuple[int, str, int]] = set()  # (query id, event, stamp) forwarded to the page
+        self._client = self.create_client(AnswerQuery, names.SRV_ANSWER, qos_profile=service_qos())
+        self.web: Any = None
+        if self.mode == "web":
+            from ird_ros.web.server import WebDesigner  # only the web mode needs the HTTP stack
+
+            self.web = WebDesigner(p["host"], int(p["port"]), self._web_answer, logger=self.get_logger())
+            self.web.start()
+            self.get_logger().info(f"designer web page at {self.web.url}")
+        latched = names.latched_qos()
+        self.create_subscription(QueryRecord, names.TOPIC_QUERIES, self._on_record, names.history_qos())
+        self.create_subscription(TerrainGrid, names.TOPIC_TERRAIN, self._on_terrain, latched)
+        self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
+        self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
+        self.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self._on_risk, latched)
+        self._retry_timer = self.create_timer(self.retry_period, self._update)
+        # A (re)started designer receives the whole latched history as one burst: a proposal is
+        # judged open only once the burst is in (no record for HISTORY_SETTLE seconds), or an
+        # answer recorded right after it would not be seen yet and the query answered again.
+        self._last_record = time.monotonic()
+        self._settle_timer = self.create_timer(HISTORY_SETTLE, self._update)
+
+    def destroy_node(self) -> None:
+        if self.web is not None:
+            self.web.stop()
+        super().destroy_node()
+
+    # ------------------------------------------------------------------ inputs
+
+    def _on_record(self, msg: QueryRecord) -> None:
+        self.records.append(msg)
+        self._last_record = time.monotonic()
+        self._update()
+
+    def _on_terrain(self, msg: TerrainGrid) -> None:
+        try:
+            self.terrain = conv.terrain_grid_from_msg(msg, field=names.TOPIC_TERRAIN)
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad terrain: {exc}")
+            return
+        self.terrain_ns = _stamp_ns(msg.header.stamp)
+        self._show_world()
+        self._update()
+
+    def _on_proxy(self, msg: ProxyReward) -> None:
+        self.proxy = msg
+        self._show_world()
+        self._update()
+
+    def _on_posterior(self, msg: RewardPosterior) -> None:
+        self.posterior = msg
+        self._show_posterior()
+
+    def _on_risk(self, msg: OccupancyGrid) -> None:
+        self.risk = msg
+        self._show_posterior()
+
+    def events(self) -> list[qr.QueryEvent]:
+        """The decoded records of the current world (needs the terrain's geometry to map poses to
+        cells); records stamped before the world's terrain belong to a forgotten world."""
+        if self.terrain is None:
+            return []
+        key = (len(self.records), self.terrain_ns)  # the timers call this often: decode on change only
+        if self._events_key == key:
+            return self._events
+        out = []
+        for msg in self.records:
+            if _stamp_ns(msg.header.stamp) < self.terrain_ns:
+                continue
+            try:
+                out.append(qr.event_from_msg(msg, resolution=self.terrain.resolution, origin=self.terrain.origin,
+                                             field=names.TOPIC_QUERIES))
+            except ValueError as exc:
+                self.get_logger().error(f"ignoring a bad query record: {exc}")
+        self._events_key, self._events = key, out
+        return out
+
+    def _update(self) -> None:
+        events = self.events()
+        if self.web is not None:
+            new = [ev for ev in events if (ev.query_id, ev.event, ev.stamp_ns) not in self._shown]
+            for ev in new:
+                (self.web.show_query if ev.event == qr.PROPOSED else self.web.show_answer)(qr.record_dict(ev))
+                self._shown.add((ev.query_id, ev.event, ev.stamp_ns))
+            if any(ev.event == qr.ANSWERED for ev in new):
+                self._show_posterior()  # the posterior may have arrived before its answer's record
+        elif self.proxy is not None and time.monotonic() - self._last_record >= HISTORY_SETTLE:
+            for proposal in qr.open_queries(events):
+                self._answer_simulated(proposal)
+
+    # ------------------------------------------------------------------ simulated mode
+
+    def _answer_simulated(self, proposal: qr.QueryEvent) -> None:
+        key = (proposal.query_id, proposal.stamp_ns)
+        if key in self._in_flight or key in self._done or not self._client.service_is_ready():
+            return
+        assert self.terrain is not None and self.proxy is not None
+        try:
+            returns = qr.option_returns(self.terrain.classes, self.terrain.class_names, self.proxy.terrain_names,
+                                        self.proxy.true_terrain_rewards, proposal.options)
+        except ValueError as exc:
+            self.get_logger().error(f"query {proposal.query_id}: cannot judge the options: {exc}")
+            self._done.add(key)
+            return
+        chosen = self.designer.answer(returns)
+        request = AnswerQuery.Request(query_id=proposal.query_id, chosen=chosen, beta=0.0, answered_by="simulated")
+        self._in_flight.add(key)
+        self.get_logger().info(f"query {proposal.query_id}: true returns {np.round(returns, 3).tolist()}, "
+                               f"answering option {chosen}")
+        self._client.call_async(request).add_done_callback(lambda fut, k=key: self._on_answered(k, fut))
+
+    def _on_answered(self, key: tuple[int, int], future: Any) -> None:
+        self._in_flight.discard(key)
+        response = future.result() if future.exception() is None else None
+        if response is None:
+            self.get_logger().error(f"query {key[0]}: the answer failed: {future.exception()}")
+            return  # retried by the timer
+        if response.success:
+            self._done.add(key)
+        elif response.message.startswith("busy"):
+            self.get_logger().info(f"query {key[0]}: {response.message} (retrying)")
+        else:
+            self._done.add(key)
+            self.get_logger().warning(f"query {key[0]}: answer refused: {response.message}")
+
+    # ------------------------------------------------------------------ web mode
+
+    def _show_world(self) -> None:
+        if self.web is None or self.terrain is None:
+            return
+        start = None if self.proxy is None else (int(self.proxy.test_start_row), int(self.proxy.test_start_col))
+        self.web.show_world(world_dict(self.terrain, start, self.terrain_ns / 1e9))
+
+    def _show_posterior(self) -> None:
+        if self.web is None or self.posterior is None:
+            return
+        try:
+            post = conv.posterior_from_msg(self.posterior, field=names.TOPIC_POSTERIOR)
+            risk = None if self.risk is None else risk_dict(conv.occupancy_grid_from_msg(self.risk),
+                                                            _stamp_s(self.risk.header.stamp))
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad posterior or risk map: {exc}")
+            return
+        # An answer's record carries its posterior's stamp; a posterior without one is /ird/infer's.
+        stamp = self.posterior.header.stamp
+        num_answers = next((int(r.num_answers) for r in reversed(self.records)
+                            if r.event == qr.ANSWERED and r.header.stamp == stamp), 0)
+        self.web.show_posterior(posterior_dict(post, num_answers, _stamp_s(self.posterior.header.stamp)), risk)
+
+    def _web_answer(self, query_id: int, chosen: int) -> tuple[bool, str]:
+        """``on_answer`` of the page: runs in the web server's thread, blocks until the reply."""
+        if not self._client.service_is_ready():
+            return False, f"inference node unavailable ({names.SRV_ANSWER} is not served)"
+        request = AnswerQuery.Request(query_id=int(query_id), chosen=int(chosen), beta=0.0, answered_by="web")
+        try:
+            response = self._client.call(request, timeout_sec=self.answer_timeout)
+        except Exception as exc:  # noqa: BLE001 - the page shows why instead of a dead request
+            return False, f"the answer failed: {type(exc).__name__}: {exc}"
+        if response is None:
+            return False, f"timeout: no reply from {names.SRV_ANSWER} within {self.answer_timeout} s"
+        return bool(response.success), str(response.message)
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(DesignerNode, args)
+
+
+if __name__ == "__main__":
+    exit_process(main())

@@ -1,0 +1,599 @@
+"""The inference node: serves IRD posterior sampling on ``/ird/infer`` and latches the result.
+
+Run: ``python -m ird_ros.nodes.inference --ros-args --params-file msgs_config/params/graph.yaml``
+
+``/ird/infer`` (InferReward) validates every field first and answers a bad request at once with
+``success: false`` and a message that starts with the field's name (``training_map.data: ...``,
+``start_row: ...``, ``proxy_weights: ...``): the message fields are decoded by
+``ird_ros.conversions``, the arguments checked by the library (``GridMDP``,
+``planning.check_start``, ``inference.check_posterior_arguments``), and only the node's own
+resource limits (``max_horizon``, ``max_num_samples``, ``max_map_values``) are checked here.
+A good request is sampled with ``ird_core.posterior.sample_posterior`` in a worker process and
+the result is returned and published on ``/ird/posterior`` (reliable, transient local). The
+posterior of a seeded request is exactly ``sample_posterior(proxy_weights, GridMDP(training_map,
+(start_row, start_col), horizon), beta, method, num_samples, seed, prior_sigma, **settings)``
+where ``settings`` holds those of ``num_chains``, ``warmup``, ``thin``, ``num_proxy_samples``
+that the node's parameters set (by default none: the library's defaults), and the map's float32
+values are used as float64.
+
+Convergence (``/ird/infer`` and ``/ird/answer``): unless ``target_r_hat`` is 0 or ``thin`` is set,
+``settings`` also holds ``until_converged=RunUntil(target_r_hat, min_ess, max_iterations=
+max_iterations, time_budget_s=time_budget or None)`` (``ird_core.posterior.sampler.RunUntil``): the same
+chains are extended until the split R-hat is at most ``target_r_hat`` and the bulk ESS at least
+``max(min_ess, num_samples / 2)``, or a bound stops them, then thinned to ``num_samples``; so the
+number of samples asked for does not decide whether the chains mix. The iteration cap is the
+deterministic bound (a seeded request gives the same posterior on any machine); the time budget
+is a safety stop only. An unconverged run is still ``success: true`` (its samples are valid draws
+of a run that was too short, and the client decides), with the response's ``converged`` False and
+a message naming the bound: ``not converged: time budget 60 s spent after ... iterations per
+chain, R-hat ... (target <= 1.05), ESS ... (target >= ...)``. The posterior message's
+``converged`` is the sampler's verdict (with ``until_converged`` its target, stricter than 1.1).
+A set ``thin`` means fixed-length chains (``ceil(num_samples / num_chains) * thin`` iterations).
+
+The proxy map (latent_classifier): with ``proxy_map`` non-empty, the proxy weights apply to
+``proxy_map``'s layers. ``phi~(w~)`` (``proxy_features`` of sample_posterior) is
+``ird_core.posterior.proxy_feature_counts`` of the proxy planned on ``proxy_map`` (same grid,
+start and horizon) with ``training_map``'s features as the hypothesis features. For Sample-Z the
+proxy prior samples are drawn in the proxy's space (``proxy_prior_samples(N, p, sigma, seed)``,
+as ``ird_core.worlds.lavaland.proxy_prior_features`` does) and counted the same way
+(``proxy_sample_features``). See :func:`proxy_map_terms` and :func:`run_inference`; the
+request's ``p`` proxy weights are recorded in the posterior as they are.
+
+Several training worlds (IRD spec section 7): each ``training_worlds[i]`` (TrainingWorld) is one
+more ``ProxyObservation`` after the request's own training map; its ``training_map`` must have the
+request's layers (the same hypothesis space, any grid size), its ``proxy_map`` is optional as
+above, empty ``proxy_weights`` = the request's. Bad fields fail naming ``training_worlds[i].<field>``.
+The posterior is then exactly ``sample_joint_posterior(job_observations(job), beta, method,
+num_samples, seed, prior_sigma, **settings)``; an empty list keeps the single-proxy path above.
+
+Responsiveness: the service callback is a coroutine that awaits the worker process
+(``node_main.WorkerPool``); the executor keeps serving parameters and other requests meanwhile.
+Concurrency: requests are computed one at a time in arrival order (``max_workers`` = 1 by
+default); invalid requests never queue; more than ``max_pending`` valid requests waiting at once
+get ``success: false`` ("busy"); see ``ird_ros.runtime.offload``.
+
+Questions to the designer (IRD spec section 7; the evidence's lifetime is documented in
+:mod:`ird_ros.jobs.inference_queries`):
+
+- ``/ird/query`` (ProposeQuery) proposes ``queries.propose_query(query_mdp, samples, answer_beta,
+  num_options, strategy, seed)`` from the current posterior's samples. Empty ``map`` = the latest
+  test map whose layers are the posterior's feature names (``/world/test_features``, else
+  ``/terrain/features``); ``horizon`` 0 = ``/world/proxy``'s test horizon; ``num_options`` 0 = 2;
+  ``strategy`` "" = ``info_gain``. Too few distinct candidate paths (every sample plans the same)
+  is ``success: false`` naming ``num_options``.
+- ``/ird/answer`` (AnswerQuery) adds ``ChoiceObservation(option_features, chosen, beta)`` to the
+  evidence and re-samples ``sample_joint_posterior([proxy] + answers, ..., seed=
+  resample_seed(seed, n), initial=<current posterior>)`` (warm start), returns it and publishes it
+  on ``/ird/posterior``. Unknown, forgotten or answered ``query_id``, out-of-range ``chosen`` and a
+  bad ``beta`` fail naming the field; an answer while another is being re-sampled is refused as
+  ``busy``; in every failure the evidence is unchanged.
+- Every proposal and every taken answer is published on ``/ird/queries`` (QueryRecord,
+  ``names.history_qos()``: transient local, the last 100 events).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from ird_core import checks
+from ird_core import planning as core_planning
+from ird_core import posterior as core_inference
+from ird_core.checks import MAX_ABS_FEATURE, PRIOR_SIGMA_RANGE
+from ird_core.designer import queries as core_queries
+from ird_core.mdp import GridMDP
+from ird_core.posterior.sampler import RunUntil
+from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior
+from ird_msgs.srv import AnswerQuery, InferReward, ProposeQuery
+from ird_ros import conversions as conv
+from ird_ros.graph import names
+from ird_ros.jobs.inference_queries import Evidence, QueryJob, resample_seed, run_query
+from ird_ros.runtime.node_main import Arrivals, exit_process, run_node
+from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.offload import Offload, OffloadError, service_qos
+
+__all__ = ["InferenceNode", "InferenceJob", "ExtraWorld", "ResampleJob", "job_observations", "SamplerSettings", "PARAMETERS", "proxy_map_terms",
+           "run_inference", "run_resample", "main"]
+
+MAP_WAIT = 10.0  # seconds /ird/query waits for the latched test map it defaults to (discovery lags)
+
+
+class _MapMissing(ValueError):
+    """No test map with the posterior's features has arrived (yet)."""
+
+
+PARAMETERS: dict[str, Param] = {
+    "default_prior_sigma": Param(1.0, "Prior standard deviation used when a request has prior_sigma 0",
+                                 min_value=PRIOR_SIGMA_RANGE[0], max_value=PRIOR_SIGMA_RANGE[1]),
+    # The sampler settings are passed to sample_posterior only when set (see SamplerSettings).
+    "num_chains": Param(0, "MCMC chains run as one batch (0 = the library's default)", min_value=0,
+                        max_value=100000),
+    "warmup": Param(-1, "MCMC warm-up steps per chain (-1 = the library's default)", min_value=-1,
+                    max_value=10**7),
+    "thin": Param(0, "Keep every thin-th MCMC step after warm-up (0 = the library's default)", min_value=0,
+                  max_value=10**6),
+    "num_proxy_samples": Param(0, "Sample-Z: proxies drawn from the proxy prior to approximate Z "
+                                  "(0 = the library's default)", min_value=0, max_value=10**6),
+    # Run until converged (see the module doc); target_r_hat 0 or thin set: fixed-length chains.
+    "target_r_hat": Param(1.05, "Run the chains until their split R-hat is at most this (0 = fixed-length "
+                                "chains, the library's default run)", min_value=0.0, max_value=10.0),
+    "min_ess": Param(400.0, "With target_r_hat: the bulk ESS must also reach max(min_ess, num_samples / 2)",
+                     min_value=0.0),
+    "max_iterations": Param(2000, "With target_r_hat: cap on post-warm-up iterations per chain (the "
+                                  "deterministic bound)", min_value=1, max_value=10**7),
+    "time_budget": Param(60.0, "With target_r_hat: wall seconds of one request after which the chains are not "
+                               "extended further (a safety stop; 0 = none)", min_value=0.0),
+    "max_num_samples": Param(100000, "Largest num_samples a request may ask for", min_value=1),
+    "max_horizon": Param(1000, "Largest horizon a request may ask for", min_value=1),
+    "max_map_values": Param(5_000_000, "Largest H*W*d of a training or proxy map", min_value=1),
+    "max_workers": Param(1, "Worker processes: inferences computed at the same time (others queue)",
+                         min_value=1, max_value=64, read_only=True),
+    "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
+                         min_value=1),
+    "answer_beta": Param(1.0, "Rationality (Boltzmann beta) of a designer's answer: the default of /ird/answer "
+                              "and what /ird/query assumes", min_value=0.0),
+    "max_options": Param(8, "Largest num_options a query may ask for", min_value=2, max_value=1000),
+    "worker_threads": Param(1, "BLAS/OpenMP threads per worker process (0 = the library default); 1 leaves "
+                               "the other cores to the node and the rest of the graph",
+                            min_value=0, max_value=1024, read_only=True),
+}
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """The node's sampler parameters; ``None`` = unset, so the library's default applies."""
+
+    num_chains: int | None = None
+    warmup: int | None = None
+    thin: int | None = None
+    num_proxy_samples: int | None = None
+    until_converged: RunUntil | None = None
+
+    @classmethod
+    def from_parameters(cls, values: dict[str, Any]) -> "SamplerSettings":
+        """From the parameter values, whose sentinels (0, or -1 for ``warmup``) mean unset;
+        ``until_converged`` unless ``target_r_hat`` is 0 or ``thin`` is set.
+
+        Raises:
+            ValueError: ``until_converged.r_hat`` for a ``target_r_hat`` in (0, 1).
+        """
+        thin = int(values["thin"]) or None
+        run = None
+        if float(values["target_r_hat"]) > 0 and thin is None:
+            budget = float(values["time_budget"])
+            run = RunUntil(r_hat=float(values["target_r_hat"]), min_ess=float(values["min_ess"]),
+                           max_iterations=int(values["max_iterations"]), time_budget_s=budget if budget > 0 else None)
+        return cls(
+            num_chains=int(values["num_chains"]) or None,
+            warmup=int(values["warmup"]) if values["warmup"] >= 0 else None,
+            thin=thin,
+            num_proxy_samples=int(values["num_proxy_samples"]) or None,
+            until_converged=run,
+        )
+
+    def kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of sample_posterior that are set."""
+        return {k: v for k, v in vars(self).items() if v is not None}
+
+
+@dataclass(frozen=True)
+class ExtraWorld:
+    """One validated ``training_worlds[i]``: its training MDP ``(H_i, W_i, d)``, its proxy-map MDP
+    ``(H_i, W_i, p_i)`` or ``None``, and its proxy weights ``(p_i,)``."""
+
+    train_mdp: GridMDP
+    proxy_mdp: GridMDP | None
+    proxy_weights: np.ndarray
+
+
+@dataclass(frozen=True)
+class InferenceJob:
+    """A validated request, as the worker process gets it.
+
+    Attributes:
+        train_mdp: the training MDP on the hypothesis features ``(H, W, d)`` (``training_map``).
+        proxy_mdp: the same grid on the proxy's features ``(H, W, p)`` (``proxy_map``), or ``None``
+            when the proxy's weights apply to the training map's layers.
+        proxy_weights: ``(p,)``.
+        beta, method, num_samples, seed, prior_sigma: as sample_posterior.
+        sampler: the node's sampler settings.
+        extra_worlds: the request's ``training_worlds`` (each one more ProxyObservation).
+    """
+
+    train_mdp: GridMDP
+    proxy_mdp: GridMDP | None
+    proxy_weights: np.ndarray
+    beta: float
+    method: str
+    num_samples: int
+    seed: int
+    prior_sigma: float
+    sampler: SamplerSettings
+    extra_worlds: tuple[ExtraWorld, ...] = ()
+
+
+def proxy_map_terms(
+    training_features: np.ndarray,
+    proxy_features: np.ndarray,
+    start: tuple[int, int],
+    horizon: int,
+    proxy_weights: np.ndarray,
+    method: str,
+    prior_sigma: float,
+    seed: int,
+    num_proxy_samples: int,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``phi~(w~)`` (d,) and, for Sample-Z, the ``phi_i`` (N, d) of a proxy defined on a proxy map.
+
+    The proxy (and each prior proxy) acts on ``proxy_features`` (H, W, p); its counts are taken in
+    ``training_features`` (H, W, d) by ``ird_core.posterior.proxy_feature_counts``.
+    """
+    proxy_mdp = GridMDP(proxy_features, start, horizon)
+    phi = core_inference.proxy_feature_counts(proxy_mdp, proxy_weights, training_features)
+    if method != "sample_z":
+        return phi, None
+    samples = core_inference.proxy_prior_samples(num_proxy_samples, proxy_mdp.num_features, prior_sigma, seed)
+    return phi, core_inference.proxy_feature_counts(proxy_mdp, samples, training_features)
+
+
+def job_observations(job: InferenceJob, num_proxy_samples: int) -> list[core_inference.ProxyObservation]:
+    """One ProxyObservation per training world: the request's own, then ``training_worlds`` in order.
+
+    A world with a proxy map gets its ``phi~(w~)`` and Sample-Z ``phi_i`` from :func:`proxy_map_terms`
+    (the same ``seed``, so every world plans the same prior proxies)."""
+    worlds = [ExtraWorld(job.train_mdp, job.proxy_mdp, job.proxy_weights), *job.extra_worlds]
+    out = []
+    for world in worlds:  # a few worlds, each one batched MDP pass
+        phi = sample_phi = None
+        train = world.train_mdp
+        if world.proxy_mdp is not None:
+            phi, sample_phi = proxy_map_terms(train.features, world.proxy_mdp.features, train.start, train.horizon,
+                                              world.proxy_weights, job.method, job.prior_sigma, job.seed,
+                                              num_proxy_samples)
+        out.append(core_inference.ProxyObservation(world.proxy_weights, train, proxy_features=phi,
+                                                   proxy_sample_features=sample_phi))
+    return out
+
+
+def run_inference(job: InferenceJob) -> core_inference.Posterior:
+    """The worker-process job: ``sample_posterior`` on a validated request (see the module doc);
+    with ``training_worlds``, ``sample_joint_posterior`` on :func:`job_observations`."""
+    kwargs: dict[str, Any] = job.sampler.kwargs()
+    if job.extra_worlds:
+        observations = job_observations(
+            job, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
+        return core_inference.sample_joint_posterior(observations, job.beta, job.method, job.num_samples, job.seed,
+                                                     job.prior_sigma, **kwargs)
+    train = job.train_mdp
+    if job.proxy_mdp is not None:
+        phi, sample_phi = proxy_map_terms(
+            train.features, job.proxy_mdp.features, train.start, train.horizon, job.proxy_weights, job.method,
+            job.prior_sigma, job.seed, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
+        kwargs["proxy_features"] = phi
+        if sample_phi is not None:
+            kwargs["proxy_sample_features"] = sample_phi
+    return core_inference.sample_posterior(job.proxy_weights, train, job.beta, job.method, job.num_samples,
+                                           job.seed, job.prior_sigma, **kwargs)
+
+
+@dataclass(frozen=True)
+class ResampleJob:
+    """Re-sampling with the answers: ``base``'s proxy observation plus ``choices``, warm-started at
+    ``initial`` (the current posterior), with ``seed``."""
+
+    base: InferenceJob
+    choices: tuple[core_inference.ChoiceObservation, ...]
+    initial: core_inference.Posterior
+    seed: int
+
+
+def run_resample(job: ResampleJob) -> core_inference.Posterior:
+    """The worker-process job of /ird/answer: ``sample_joint_posterior`` on all the evidence."""
+    base = job.base
+    kwargs: dict[str, Any] = base.sampler.kwargs()
+    kwargs.pop("warmup", None)  # a warm start has its own short warm-up (the library's default)
+    proxies = job_observations(base, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
+    return core_inference.sample_joint_posterior(
+        [*proxies, *job.choices], base.beta, base.method, base.num_samples, job.seed, base.prior_sigma,
+        initial=job.initial, **kwargs)
+
+
+def _stamp_key(stamp: Any) -> tuple[int, int]:
+    return int(stamp.sec), int(stamp.nanosec)
+
+
+class InferenceNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(names.NODE_INFERENCE, **kwargs)
+        p = declare_all(self, PARAMETERS)
+        self.default_prior_sigma = p["default_prior_sigma"]
+        self.max_num_samples, self.max_horizon = p["max_num_samples"], p["max_horizon"]
+        self.max_map_values = p["max_map_values"]
+        self.sampler = SamplerSettings.from_parameters(p)
+        if p["worker_threads"] > 0:
+            # Read by numpy's BLAS when the spawned worker imports it (the node's numpy is loaded).
+            for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+                os.environ[var] = str(p["worker_threads"])
+        self._offload = Offload("inference", p["max_pending"], max_workers=p["max_workers"],
+                                warm_modules=("ird_core.posterior", "ird_core.mdp"), logger=self.get_logger())
+        self._pub = self.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
+        self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
+        self.evidence = Evidence()
+        self.maps: dict[str, conv.FeatureGridData] = {}
+        self._map_arrivals = Arrivals(self)
+        self.proxy: ProxyReward | None = None
+        self._queries_pub = self.create_publisher(QueryRecord, names.TOPIC_QUERIES, names.history_qos())
+        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
+            self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg),
+                                     names.latched_qos())
+        self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, names.latched_qos())
+        # Own reentrant group: a pending (awaiting) request must not hold the default group, which
+        # serves parameters (and subscriptions).
+        group = ReentrantCallbackGroup()
+        self.create_service(InferReward, names.SRV_INFER, self._on_infer, callback_group=group,
+                            qos_profile=service_qos())
+        self.create_service(ProposeQuery, names.SRV_QUERY, self._on_query, callback_group=group,
+                            qos_profile=service_qos())
+        self.create_service(AnswerQuery, names.SRV_ANSWER, self._on_answer, callback_group=group,
+                            qos_profile=service_qos())
+
+    def destroy_node(self) -> None:
+        self._offload.shutdown()
+        super().destroy_node()
+
+    # ------------------------------------------------------------------ validation
+
+    def validate(self, req: InferReward.Request) -> tuple[InferenceJob, tuple[str, ...]]:
+        """The worker job of a request and the training map's layer names.
+
+        Raises:
+            ValueError: naming the request field (from the decoders and the library's checks).
+        """
+        train, proxy, start = self._world_maps("", req)
+        d = train.shape[2]
+        if req.horizon > self.max_horizon:
+            raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
+        if req.num_samples > self.max_num_samples:
+            raise ValueError(f"num_samples: {req.num_samples} exceeds max_num_samples={self.max_num_samples}")
+        prior_sigma = float(self.default_prior_sigma) if req.prior_sigma == 0.0 else float(req.prior_sigma)
+        weights = checks.check_posterior_arguments(
+            np.asarray(req.proxy_weights, dtype=np.float64), d if proxy is None else proxy.shape[2], req.beta,
+            req.method, int(req.num_samples), prior_sigma)
+        train_mdp = GridMDP(train.features.astype(np.float64), start, int(req.horizon))
+        job = InferenceJob(
+            train_mdp=train_mdp,
+            proxy_mdp=None if proxy is None else train_mdp.with_features(proxy.features.astype(np.float64)),
+            proxy_weights=weights,
+            beta=float(req.beta),
+            method=req.method,
+            num_samples=int(req.num_samples),
+            seed=int(req.seed),
+            prior_sigma=prior_sigma,
+            sampler=self.sampler,
+            extra_worlds=tuple(self._training_world(i, world, train.layers, weights)
+                               for i, world in enumerate(req.training_worlds)),
+        )
+        return job, train.layers
+
+    def _world_maps(self, prefix: str, msg: Any, layers: tuple[str, ...] | None = None
+                    ) -> tuple[conv.FeatureGridData, conv.FeatureGridData | None, tuple[int, int]]:
+        """A world's decoded training map, proxy map (or None) and start, for the request itself
+        (``prefix`` "") and each ``training_worlds[i].``; errors name ``<prefix><field>``."""
+        train = conv.feature_grid_from_msg(msg.training_map, field=f"{prefix}training_map", max_abs=MAX_ABS_FEATURE)
+        h, w, d = train.shape
+        if layers is not None and train.layers != layers:
+            raise ValueError(f"{prefix}training_map.layers: {list(train.layers)} must be the request's training_map "
+                             f"layers {list(layers)}")
+        if h * w * d > self.max_map_values:
+            raise ValueError(f"{prefix}training_map.data: {h * w * d} values exceed "
+                             f"max_map_values={self.max_map_values}")
+        proxy = None
+        if len(msg.proxy_map.layers) or len(msg.proxy_map.data):
+            proxy = conv.feature_grid_from_msg(msg.proxy_map, field=f"{prefix}proxy_map", max_abs=MAX_ABS_FEATURE)
+            if proxy.shape[:2] != (h, w):
+                raise ValueError(f"{prefix}proxy_map.info: a {proxy.shape[0]}x{proxy.shape[1]} map does not match "
+                                 f"the {h}x{w} {prefix}training_map")
+            if proxy.features.size > self.max_map_values:
+                raise ValueError(f"{prefix}proxy_map.data: {proxy.features.size} values exceed max_map_values")
+        try:
+            start = core_planning.check_start((msg.start_row, msg.start_col), h, w)
+        except ValueError as exc:
+            raise ValueError(f"{prefix}{exc}") from None
+        return train, proxy, start
+
+    def _training_world(self, i: int, msg: Any, layers: tuple[str, ...], default_weights: np.ndarray) -> ExtraWorld:
+        """``training_worlds[i]`` validated (ValueError naming ``training_worlds[i].<field>``)."""
+        key = f"training_worlds[{i}]"
+        train, proxy, start = self._world_maps(key + ".", msg, layers)
+        d = train.shape[2]
+        if not 0 < msg.horizon <= self.max_horizon:
+            raise ValueError(f"{key}.horizon: must be in [1, max_horizon={self.max_horizon}], got {msg.horizon}")
+        weights = np.asarray(msg.proxy_weights, dtype=np.float64) if len(msg.proxy_weights) else default_weights
+        expected = d if proxy is None else proxy.shape[2]
+        if weights.shape != (expected,) or not np.all(np.isfinite(weights)):
+            raise ValueError(f"{key}.proxy_weights: expected {expected} finite values (one per "
+                             f"{'training_map' if proxy is None else 'proxy_map'} layer), got {weights.tolist()}")
+        train_mdp = GridMDP(train.features.astype(np.float64), start, int(msg.horizon))
+        proxy_mdp = None if proxy is None else train_mdp.with_features(proxy.features.astype(np.float64))
+        return ExtraWorld(train_mdp, proxy_mdp, weights)
+
+    # ------------------------------------------------------------------ service
+
+    async def _on_infer(self, req: InferReward.Request, response: InferReward.Response) -> InferReward.Response:
+        try:
+            job, layers = self.validate(req)
+        except ValueError as exc:
+            response.success, response.message = False, str(exc)
+            self.get_logger().debug(f"{names.SRV_INFER} rejected: {exc}")
+            return response
+        try:
+            posterior = await self._offload.run(self.executor, run_inference, job)
+            msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=job.proxy_weights,
+                                        stamp=self.get_clock().now().to_msg())
+            msg.converged = posterior.converged
+        except OffloadError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        except ValueError as exc:  # the posterior does not fit a message: a bug, not a bad request
+            response.success, response.message = False, f"internal error: {exc}"
+            self.get_logger().error(response.message)
+            return response
+        self._pub.publish(msg)
+        self.evidence.reset(job, posterior, layers, _stamp_key(req.training_map.header.stamp))
+        response.success = True
+        response.posterior = msg
+        response.message = (f"{posterior.method}: {posterior.num_samples} samples, acceptance "
+                            f"{posterior.acceptance_rate:.2f}, {posterior.diagnosis()}")
+        self.get_logger().info(response.message)
+        return response
+
+    # ------------------------------------------------------------------ designer queries
+
+    def _on_map(self, topic: str, msg: FeatureGrid) -> None:
+        try:
+            self.maps[topic] = conv.feature_grid_from_msg(msg, field=topic)
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad map: {exc}")
+        self._map_arrivals.notify()
+
+    def _on_proxy(self, msg: ProxyReward) -> None:
+        self.proxy = msg
+        if self.evidence.on_proxy(_stamp_key(msg.header.stamp)):
+            self.get_logger().info("a new world: the evidence (proxy, answers, open queries) was forgotten")
+
+    def _query_map(self, req: ProposeQuery.Request) -> conv.FeatureGridData:
+        names_ = self.evidence.feature_names
+        if len(req.map.layers) or len(req.map.data):
+            grid = conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
+            if grid.layers != names_:
+                raise ValueError(f"map.layers: {list(grid.layers)} must be the posterior's features {list(names_)}")
+            return grid
+        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
+            grid = self.maps.get(topic)
+            if grid is not None and grid.layers == names_:
+                return grid
+        raise _MapMissing(f"map: empty, and no test map with the posterior's features {list(names_)} was received")
+
+    def validate_query(self, req: ProposeQuery.Request) -> tuple[QueryJob, conv.FeatureGridData]:
+        """The worker job of a query request and its map (``ValueError`` naming the field)."""
+        if self.evidence.posterior is None:
+            raise ValueError("evidence: no posterior for the current world: call /ird/infer first")
+        grid = self._query_map(req)
+        h, w, d = grid.shape
+        if h * w * d > self.max_map_values:
+            raise ValueError(f"map.data: {h * w * d} values exceed max_map_values={self.max_map_values}")
+        start = core_planning.check_start((req.start_row, req.start_col), h, w)
+        horizon = int(req.horizon)
+        if horizon == 0:
+            if self.proxy is None:
+                raise ValueError("horizon: 0 means /world/proxy's test horizon, and no proxy was received")
+            horizon = int(self.proxy.test_horizon)
+        if horizon > self.max_horizon:
+            raise ValueError(f"horizon: {horizon} exceeds max_horizon={self.max_horizon}")
+        num_options = int(req.num_options) or 2
+        if not 2 <= num_options <= self.max_options:
+            raise ValueError(f"num_options: must be in [2, max_options={self.max_options}], got {num_options}")
+        strategy = req.strategy or "info_gain"
+        if strategy not in core_queries.STRATEGIES:
+            raise ValueError(f"strategy: must be one of {list(core_queries.STRATEGIES)}, got {strategy!r}")
+        mdp = GridMDP(grid.features.astype(np.float64), start, horizon)
+        return QueryJob(mdp, self.evidence.posterior.samples, self.answer_beta, num_options, strategy,
+                        int(req.seed)), grid
+
+    async def _on_query(self, req: ProposeQuery.Request, response: ProposeQuery.Response) -> ProposeQuery.Response:
+        ev = self.evidence
+        try:
+            if ev.resampling:
+                raise ValueError("busy: re-sampling the posterior with an answer; ask again when it is published")
+            deadline = time.monotonic() + MAP_WAIT
+            while True:
+                try:
+                    job, grid = self.validate_query(req)
+                    break
+                except _MapMissing:
+                    if time.monotonic() >= deadline or not await self._map_arrivals.wait(deadline - time.monotonic()):
+                        raise
+        except ValueError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        epoch = ev.epoch
+        try:
+            query = await self._offload.run(self.executor, run_query, job)
+        except OffloadError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        if ev.epoch != epoch:
+            response.success, response.message = False, "the evidence was replaced (new world or /ird/infer) meanwhile"
+            return response
+        h, w, _ = grid.shape
+        stamp = self.get_clock().now().to_msg()
+        paths = conv.options_to_paths(query.option_cells, resolution=grid.resolution, origin=grid.origin,
+                                      height=h, width=w, stamp=stamp)
+        record = dict(strategy=query.strategy, options=paths, feature_names=ev.feature_names,
+                      option_features=query.option_features, information_gain=float(query.information_gain))
+        qid = ev.add_query(query, record)
+        self._queries_pub.publish(conv.query_record_to_msg(query_id=qid, event="proposed", num_answers=len(ev.answers),
+                                                           stamp=stamp, **record))
+        response.success, response.query_id = True, qid
+        response.options, response.feature_names = paths, list(ev.feature_names)
+        response.option_features = conv.weights_to_flat(query.option_features, field="option_features")
+        response.information_gain = float(query.information_gain)
+        response.message = (f"query {qid}: {query.num_options} options ({query.strategy}, of {query.num_candidates} "
+                            f"candidates), information gain {query.information_gain:.4f} nats")
+        self.get_logger().info(response.message)
+        return response
+
+    async def _on_answer(self, req: AnswerQuery.Request, response: AnswerQuery.Response) -> AnswerQuery.Response:
+        ev = self.evidence
+        try:
+            open_query, beta = ev.check_answer(int(req.query_id), int(req.chosen), float(req.beta), self.answer_beta)
+            if ev.resampling:
+                raise ValueError("busy: re-sampling the posterior with another answer; answer again when it is "
+                                 "published")
+        except ValueError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        choice = ev.choice(open_query, int(req.chosen), beta)
+        base, layers = ev.job, ev.feature_names
+        job = ResampleJob(base, (*ev.answers, choice), ev.posterior, resample_seed(base.seed, len(ev.answers) + 1))
+        epoch, ev.resampling = ev.epoch, True
+        try:
+            posterior = await self._offload.run(self.executor, run_resample, job)
+            msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=base.proxy_weights,
+                                        stamp=self.get_clock().now().to_msg())
+            msg.converged = posterior.converged
+        except (OffloadError, ValueError) as exc:
+            response.success, response.message = False, f"the answer was not taken: {exc}"
+            return response
+        finally:
+            if ev.epoch == epoch:
+                ev.resampling = False
+        if ev.epoch != epoch:
+            response.success = False
+            response.message = "the answer was not taken: the evidence was replaced (new world or /ird/infer) meanwhile"
+            return response
+        ev.commit(open_query, choice, posterior)
+        self._pub.publish(msg)
+        who = req.answered_by or "client"
+        self._queries_pub.publish(conv.query_record_to_msg(
+            query_id=open_query.query_id, event="answered", chosen=int(req.chosen), beta=beta, answered_by=who,
+            num_answers=len(ev.answers), stamp=msg.header.stamp, **open_query.record))
+        response.success, response.posterior = True, msg
+        response.message = (f"query {open_query.query_id}: option {req.chosen} by {who}; {len(ev.answers)} answers, "
+                            f"acceptance {posterior.acceptance_rate:.2f}, {posterior.diagnosis()}")
+        self.get_logger().info(response.message)
+        return response
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(InferenceNode, args)
+
+
+if __name__ == "__main__":
+    exit_process(main())

@@ -1,0 +1,450 @@
+"""The planner node: literal and risk-averse plans on the perceived test map (``/ird/plan``).
+
+Run: ``python -m ird_ros.nodes.planner --ros-args --params-file msgs_config/params/graph.yaml``
+
+Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
+``/world/train_features``, ``/world/train_proxy_features``, ``/world/proxy`` and
+``/ird/posterior``.
+
+``/ird/plan`` (PlanPath) fills in what a request leaves empty:
+
+- ``weights`` empty: the latest posterior's samples; for mode ``literal`` the latest proxy's
+  weights. Their feature names are the posterior's ``feature_names`` / the proxy's.
+- ``map`` empty: the latest perceived test map whose layer names equal those feature names,
+  looked up in ``/world/test_features`` (the hypothesis space: posterior samples) and then
+  ``/terrain/features`` (the proxy's space: the classifier proxy's literal plan). With explicit
+  ``weights`` and no map, the first of those two maps whose layer count fits the weights (K*d
+  values, d = its layer count; K = 1 for literal) is used.
+- ``reference_features`` empty (needed by baseline ``training_features`` only): the proxy's
+  expected feature counts in the training MDP divided by (training horizon + 1), in the space
+  of the weights: the proxy is planned (MaxEnt) on the training map in the proxy's own features
+  (``/world/train_proxy_features``, start and horizon from ``/world/proxy``), and its expected
+  visits are contracted with the training map whose layers match the weights
+  (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
+  proxy's own weights): ``ird_core.posterior.proxy_feature_counts / (T + 1)``, as
+  ``ird_core.worlds.lavaland.proxy_feature_expectations / (T + 1)``.
+
+Every field is validated before the plan is queued (``success: false``, the message starts with
+the field's name): the map is decoded by ``ird_ros.conversions``, the arguments are checked by
+``ird_core.planning.check_plan_arguments``, ``check_start`` and ``GridMDP``; the node itself
+checks only its limits (``max_horizon``, ``max_map_values``; ``max_plan_work`` through ``planning.check_plan_size``,
+before any work starts) and which received inputs fit together. The plan is
+``ird_core.planning.plan_path(GridMDP(map, start, horizon), weights, mode, baseline,
+reference_features, time_limit=time_limit)``, computed in a worker process: trajectory plans
+in one of their own, so a long one never delays a ``literal`` or ``per_step`` plan. A
+trajectory plan that reaches ``time_limit`` is answered with the best path found, marked in the
+message as ``FALLBACK, not proven optimal`` with its objective and proven upper bound. It is
+published on ``/plan`` (nav_msgs/Path, poses at cell centres, stamp = now, frame ``map``) and
+``/ird/plan_info`` (same stamp; label, mode, baseline, objective, cells), both latched.
+
+The response message ends with the inputs a request left empty and where they came from, as
+``; inputs: weights=/ird/posterior@<sec>.<nanosec>, map=/world/test_features@<sec>.<nanosec>,
+reference_features=/world/proxy@...+/world/train_proxy_features@...+/world/train_features@...``
+(header stamps of the messages used), so a caller can tell which world generation was planned on.
+Inputs given in the request are not listed.
+
+``/ird/risk_map`` (OccupancyGrid 0..100, ``planning.risk_map`` of the posterior samples on the
+matching perceived test map, latched) is republished whenever a new posterior or a new matching
+map arrives. With ``replan_on_posterior`` true, every new posterior also triggers a plan with
+``default_mode`` / ``default_baseline`` from the proxy's test start and horizon.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from nav_msgs.msg import OccupancyGrid, Path
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from ird_core import planning
+from ird_core import posterior as core_inference
+from ird_core.checks import MAX_ABS_FEATURE
+from ird_core.mdp import GridMDP
+from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
+from ird_msgs.srv import PlanPath
+from ird_ros import conversions as conv
+from ird_ros.graph import names
+from ird_ros.runtime.node_main import exit_process, run_node
+from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.offload import Offload, OffloadError, service_qos
+
+__all__ = ["PlannerNode", "PlanJob", "PlanOutcome", "ReferenceJob", "PARAMETERS", "reference_features", "run_plan", "main"]
+
+PARAMETERS: dict[str, Param] = {
+    "replan_on_posterior": Param(False, "Plan (default_mode, default_baseline, proxy's test start/horizon) on "
+                                        "every new posterior"),
+    "default_mode": Param("per_step", "Mode of plans made on a new posterior", choices=planning.MODES),
+    "default_baseline": Param("training_features", "Baseline of plans made on a new posterior",
+                              choices=planning.BASELINES),
+    "risk_statistic": Param("std", "Spread statistic of the risk map", choices=planning.STATISTICS),
+    "time_limit": Param(10.0, "Seconds a trajectory plan may take (label search and MILP); past it the best "
+                              "path found is answered as a fallback", min_value=0.001),
+    "max_horizon": Param(1000, "Largest horizon a request may ask for", min_value=1),
+    "worker_memory_mb": Param(4096, "Address space of each planning worker process in MiB (0 = no limit); a plan "
+                                    "past it fails with MemoryError", min_value=0),
+    "max_map_values": Param(5_000_000, "Largest H*W*d of a request's map", min_value=1),
+    "max_plan_work": Param(50_000_000, "Largest samples x (horizon + 1) x cells of a plan (planning.plan_work)",
+                           min_value=1),
+    "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
+                         min_value=1),
+}
+
+
+@dataclass(frozen=True)
+class ReferenceJob:
+    """The inputs of the default ``reference_features`` (see the module doc).
+
+    Attributes:
+        proxy_mdp: the training map in the proxy's features ``(H, W, p)``, the proxy's training
+            start and horizon.
+        proxy_weights: ``(p,)``.
+        target_features: the training map in the features of the plan's weights, ``(H, W, d)``.
+    """
+
+    proxy_mdp: GridMDP
+    proxy_weights: np.ndarray
+    target_features: np.ndarray
+
+
+@dataclass(frozen=True)
+class PlanJob:
+    """A validated request, as the worker process gets it: ``plan_path``'s arguments, with
+    ``reference_job`` standing in for ``reference_features`` when those are to be computed."""
+
+    mdp: GridMDP
+    weights: np.ndarray
+    mode: str
+    baseline: str
+    reference_features: np.ndarray | None
+    reference_job: ReferenceJob | None
+    time_limit: float | None
+
+
+@dataclass(frozen=True)
+class _Accepted:
+    """A validated request: the job and what the answer needs besides the plan."""
+
+    job: PlanJob
+    grid: conv.FeatureGridData
+    label: str
+    sources: tuple[str, ...]  # where defaulted inputs came from (reported in the message)
+
+
+def reference_features(job: ReferenceJob) -> np.ndarray:
+    """``f_ref`` (d,): the proxy's expected training counts of ``target_features`` / (T + 1)."""
+    counts = core_inference.proxy_feature_counts(job.proxy_mdp, job.proxy_weights, job.target_features)
+    return counts / (job.proxy_mdp.horizon + 1)
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What the worker returns: the plan, and why it is a fallback (``""`` if it is optimal)."""
+
+    plan: planning.Plan
+    fallback: str = ""
+
+
+def run_plan(job: PlanJob) -> PlanOutcome:
+    """The worker-process job: the default reference features if asked for, then plan_path.
+
+    A trajectory plan that runs out of ``time_limit`` answers with the best path found, its
+    exact objective and the proven upper bound (``PlanningTimeout.plan``), marked as a fallback.
+    """
+    reference = job.reference_features
+    if reference is None and job.reference_job is not None:
+        reference = reference_features(job.reference_job)
+    try:
+        return PlanOutcome(planning.plan_path(job.mdp, job.weights, job.mode, job.baseline, reference,
+                                              time_limit=job.time_limit))
+    except planning.PlanningTimeout as exc:
+        return PlanOutcome(exc.plan, f"FALLBACK, not proven optimal: {exc}")
+
+
+def _stamp(stamp: Any) -> str:
+    """A header stamp as ``sec.nanosec`` (nanoseconds zero-padded), as in the response message."""
+    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+
+
+def _flat(values: Any) -> np.ndarray:
+    return np.array(values, dtype=np.float64).reshape(-1)
+
+
+class PlannerNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(names.NODE_PLANNER, **kwargs)
+        p = declare_all(self, PARAMETERS)
+        self.replan_on_posterior = p["replan_on_posterior"]
+        self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
+        self.risk_statistic = p["risk_statistic"]
+        self.time_limit, self.max_horizon = p["time_limit"], p["max_horizon"]
+        self.max_plan_work, self.max_map_values = p["max_plan_work"], p["max_map_values"]
+        # Trajectory plans (seconds, up to time_limit) get their own worker: a long one never
+        # delays a literal or per_step plan (milliseconds), which queue on the other.
+        pool = dict(warm_modules=("ird_core.planning", "ird_core.posterior", "ird_core.mdp"),
+                    memory_limit=p["worker_memory_mb"] * 2**20, logger=self.get_logger())
+        self._offloads = {"dp": Offload("planning", p["max_pending"], **pool),
+                          "trajectory": Offload("planning", p["max_pending"], **pool)}
+        latched = names.latched_qos()
+        self._plan_pub = self.create_publisher(Path, names.TOPIC_PLAN, latched)
+        self._info_pub = self.create_publisher(PlanInfo, names.TOPIC_PLAN_INFO, latched)
+        self._risk_pub = self.create_publisher(OccupancyGrid, names.TOPIC_RISK_MAP, latched)
+        self.maps: dict[str, conv.FeatureGridData] = {}
+        self._versions: dict[str, int] = {}  # messages received per topic (risk map freshness)
+        self._stamps: dict[str, str] = {}  # header stamp of the latest message per topic
+        self.proxy: ProxyReward | None = None
+        self.posterior: conv.PosteriorData | None = None
+        self._risk_key: Any = None
+        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES,
+                      names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
+            self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
+        self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
+        self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
+        self.create_service(PlanPath, names.SRV_PLAN, self._on_plan, qos_profile=service_qos(),
+                            # Own reentrant group: a pending (awaiting) request must not hold the
+                            # default group, which serves parameters (and subscriptions).
+                            callback_group=ReentrantCallbackGroup())
+
+    def destroy_node(self) -> None:
+        for offload in self._offloads.values():
+            offload.shutdown()
+        super().destroy_node()
+
+    # ------------------------------------------------------------------ inputs
+
+    def _on_map(self, topic: str, msg: FeatureGrid) -> None:
+        try:
+            self.maps[topic] = conv.feature_grid_from_msg(msg, field=topic)
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad map: {exc}")
+            return
+        self._versions[topic] = self._versions.get(topic, 0) + 1
+        self._stamps[topic] = _stamp(msg.header.stamp)
+        self._update_risk_map()
+
+    def _on_proxy(self, msg: ProxyReward) -> None:
+        self.proxy = msg
+
+    def _on_posterior(self, msg: RewardPosterior) -> None:
+        try:
+            self.posterior = conv.posterior_from_msg(msg, field=names.TOPIC_POSTERIOR)
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad posterior: {exc}")
+            return
+        self._versions[names.TOPIC_POSTERIOR] = self._versions.get(names.TOPIC_POSTERIOR, 0) + 1
+        self._stamps[names.TOPIC_POSTERIOR] = _stamp(msg.header.stamp)
+        self._update_risk_map()
+        if self.replan_on_posterior:
+            self.executor.create_task(self._replan())
+
+    def matching_map(self, layers: tuple[str, ...]) -> tuple[str, conv.FeatureGridData] | None:
+        """The latest perceived test map whose layers are ``layers`` (test features first)."""
+        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
+            grid = self.maps.get(topic)
+            if grid is not None and grid.layers == tuple(layers):
+                return topic, grid
+        return None
+
+    def _update_risk_map(self) -> None:
+        if self.posterior is None:
+            return
+        found = self.matching_map(self.posterior.feature_names)
+        if found is None:
+            return
+        topic, grid = found
+        # Keyed on the map's world generation (header stamp), not on the topic it came by:
+        # /terrain/features carries /world/test_features' stamp and, when its layers match, the
+        # same values, so whichever of the two arrives second (DDS delivery order varies under
+        # load) is the same map and must not publish a second, identical risk map.
+        key = (self._versions.get(names.TOPIC_POSTERIOR), self._stamps[topic])
+        if key == self._risk_key:
+            return
+        self._risk_key = key
+        try:
+            costs = planning.risk_map(grid.features.astype(np.float64), self.posterior.samples, self.risk_statistic)
+        except ValueError as exc:
+            self.get_logger().error(f"risk map: {exc}")
+            return
+        self._risk_pub.publish(conv.occupancy_grid_to_msg(
+            costs, resolution=grid.resolution, origin=grid.origin, stamp=self.get_clock().now().to_msg()))
+
+    # ------------------------------------------------------------------ validation
+
+    def validate(self, req: PlanPath.Request) -> _Accepted:
+        """Check every field and fill in the defaults.
+
+        Raises:
+            ValueError: naming the request field (from the decoders and the library's checks).
+        """
+        # Mode and baseline first: which inputs are defaulted depends on them.
+        planning.check_plan_arguments(req.mode, req.baseline)
+        if req.horizon > self.max_horizon:
+            raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
+        literal = req.mode == "literal"
+        grid: conv.FeatureGridData | None = None
+        if len(req.map.layers) or len(req.map.data):
+            if len(req.map.data) > self.max_map_values:
+                raise ValueError(f"map.data: {len(req.map.data)} values exceed max_map_values={self.max_map_values}")
+            grid = conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
+        flat = _flat(req.weights)
+        sources: list[str] = []
+        if flat.size == 0:
+            if literal:
+                if self.proxy is None:
+                    raise ValueError("weights: empty and no proxy received on /world/proxy yet")
+                weights = _flat(self.proxy.weights)[None, :]
+                feature_names = tuple(self.proxy.feature_names)
+                sources.append(f"weights={names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}")
+            else:
+                if self.posterior is None:
+                    raise ValueError("weights: empty and no posterior received on /ird/posterior yet")
+                weights = self.posterior.samples
+                feature_names = self.posterior.feature_names
+                sources.append(f"weights={names.TOPIC_POSTERIOR}@{self._stamps[names.TOPIC_POSTERIOR]}")
+            if grid is None:
+                found = self.matching_map(feature_names)
+                if found is None:
+                    raise ValueError(f"map: empty and no perceived test map has the layers "
+                                     f"{list(feature_names)[:4]}{'...' if len(feature_names) > 4 else ''} "
+                                     "of the weights")
+                grid = found[1]
+                sources.append(f"map={found[0]}@{self._stamps[found[0]]}")
+            elif grid.layers != feature_names:
+                raise ValueError(f"map.layers: {list(grid.layers)[:4]}... do not match the weights' features "
+                                 f"{list(feature_names)[:4]}...")
+        else:
+            if grid is None:
+                for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
+                    candidate = self.maps.get(topic)
+                    if candidate is None:
+                        continue
+                    d = candidate.shape[2]
+                    if (literal and flat.size == d) or (not literal and flat.size % d == 0):
+                        grid = candidate
+                        sources.append(f"map={topic}@{self._stamps[topic]}")
+                        break
+                if grid is None:
+                    raise ValueError(f"map: empty and no perceived test map fits {flat.size} weight values")
+            d = grid.shape[2]
+            if flat.size % d:
+                raise ValueError(f"weights: {flat.size} values are not a multiple of d={d} (map.layers)")
+            weights = flat.reshape(-1, d)
+            feature_names = grid.layers
+        h, w, d = grid.shape
+        planning.check_plan_size(len(weights), int(req.horizon), h, w, self.max_plan_work)
+        start = planning.check_start((req.start_row, req.start_col), h, w)
+        mdp = GridMDP(grid.features.astype(np.float64), start, int(req.horizon))
+        ref_flat = _flat(req.reference_features)
+        reference = ref_flat if ref_flat.size else None
+        time_limit = float(self.time_limit)
+        weights = planning.check_plan_arguments(req.mode, req.baseline, weights, d, reference, time_limit=time_limit)
+        reference_job = None
+        if reference is None and req.baseline == "training_features":
+            reference_job, used = self._reference_job(feature_names)
+            sources.append("reference_features=" + "+".join(used))
+        job = PlanJob(mdp=mdp, weights=weights, mode=req.mode, baseline=req.baseline, reference_features=reference,
+                      reference_job=reference_job, time_limit=time_limit)
+        label = req.label or (req.mode if literal else f"ird_{req.mode}_{req.baseline}")
+        return _Accepted(job=job, grid=grid, label=label, sources=tuple(sources))
+
+    def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
+        """The default reference features' inputs from the latest proxy and training maps, and
+        the ``topic@stamp`` of each input used."""
+        if self.proxy is None:
+            raise ValueError("reference_features: empty, and no proxy received on /world/proxy to compute them")
+        proxy_names = tuple(self.proxy.feature_names)
+        used = [f"{names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}"]
+        proxy_train = None
+        # The proxy is planned on its own features: the classified training map, or (no separate
+        # proxy space) the training features themselves.
+        for topic in (names.TOPIC_TRAIN_PROXY_FEATURES, names.TOPIC_TRAIN_FEATURES):
+            grid = self.maps.get(topic)
+            if grid is not None and grid.layers == proxy_names:
+                proxy_train = grid
+                used.append(f"{topic}@{self._stamps[topic]}")
+                break
+        if proxy_train is None:
+            raise ValueError("reference_features: empty, and no training map with the proxy's layers "
+                             "was received on /world/train_proxy_features or /world/train_features")
+        target = None
+        for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
+            grid = self.maps.get(topic)
+            if grid is not None and grid.layers == feature_names:
+                target = grid
+                used.append(f"{topic}@{self._stamps[topic]}")
+                break
+        if target is None:
+            raise ValueError("reference_features: empty, and no training map has the layers of the weights")
+        if target.shape[:2] != proxy_train.shape[:2]:
+            raise ValueError("reference_features: empty, and the training maps have different sizes")
+        try:
+            proxy_mdp = GridMDP(proxy_train.features.astype(np.float64),
+                                (int(self.proxy.start_row), int(self.proxy.start_col)), int(self.proxy.horizon))
+        except ValueError as exc:
+            raise ValueError(f"reference_features: empty, and the proxy on {names.TOPIC_PROXY} does not fit "
+                             f"its training map ({exc})") from None
+        return ReferenceJob(proxy_mdp=proxy_mdp, proxy_weights=_flat(self.proxy.weights),
+                            target_features=target.features.astype(np.float64)), used
+
+    # ------------------------------------------------------------------ planning
+
+    async def _plan(self, req: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
+        try:
+            accepted = self.validate(req)
+            offload = self._offloads["trajectory" if accepted.job.mode == "trajectory" else "dp"]
+            outcome = await offload.run(self.executor, run_plan, accepted.job)
+        except (ValueError, OffloadError) as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        grid, label, sources, plan = accepted.grid, accepted.label, accepted.sources, outcome.plan
+        stamp = self.get_clock().now().to_msg()
+        path = conv.cells_to_path(plan.cells, resolution=grid.resolution, origin=grid.origin,
+                                  height=grid.shape[0], width=grid.shape[1], stamp=stamp)
+        rows = [int(r) for r, _ in plan.cells]
+        cols = [int(c) for _, c in plan.cells]
+        info = PlanInfo()
+        info.header = conv.make_header(stamp)
+        info.label = label
+        info.mode = plan.mode
+        info.baseline = plan.baseline
+        info.objective = float(plan.objective)
+        info.rows = rows
+        info.cols = cols
+        self._info_pub.publish(info)  # before the path: Rob can label the plan as soon as it starts
+        self._plan_pub.publish(path)
+        response.success = True
+        response.message = (f"{label}: {plan.mode}/{plan.baseline} objective {plan.objective:.6g} "
+                            f"({plan.solver}, {len(plan.cells) - 1} moves)"
+                            + (f"; {outcome.fallback}" if outcome.fallback else "")
+                            + (f"; inputs: {', '.join(sources)}" if sources else ""))
+        response.path = path
+        response.objective = float(plan.objective)
+        response.rows = rows
+        response.cols = cols
+        self.get_logger().info(response.message)
+        return response
+
+    async def _on_plan(self, req: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
+        return await self._plan(req, response)
+
+    async def _replan(self) -> None:
+        if self.proxy is None:
+            self.get_logger().warning("replan_on_posterior: no proxy yet (test start/horizon unknown)")
+            return
+        req = PlanPath.Request()
+        req.start_row, req.start_col = int(self.proxy.test_start_row), int(self.proxy.test_start_col)
+        req.horizon = int(self.proxy.test_horizon)
+        req.mode, req.baseline = self.default_mode, self.default_baseline
+        response = await self._plan(req, PlanPath.Response())
+        if not response.success:
+            self.get_logger().warning(f"replan_on_posterior: {response.message}")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(PlannerNode, args)
+
+
+if __name__ == "__main__":
+    exit_process(main())

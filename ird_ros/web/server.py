@@ -1,0 +1,439 @@
+"""The designer's web page: a person answers the robot's queries in a browser (ROS-free).
+
+``WebDesigner`` serves one page (``ird_ros/web/``: HTML, JS, CSS, no external assets) from an
+HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.nodes.designer``,
+``mode: web``) owns every ROS interface and feeds this object plain dicts::
+
+    web = WebDesigner("127.0.0.1", 8765, on_answer, logger=node.get_logger())
+    web.start()                        # listening when it returns; web.url has the real port
+    web.show_world(world)              # terrain to draw (a new world makes older queries stale)
+    web.show_query(record)             # a new open query
+    web.show_answer(record)            # a query got answered (by anyone)
+    web.show_posterior(posterior, risk_map)
+    web.stop()
+
+The dict layouts are those of ``/work/notes/designer_web_contract.md`` (mirrored in the
+``show_*`` docstrings). Every ``show_*`` is thread-safe and non-blocking: it updates the state
+under a lock and schedules a push of the new state to every open page over a WebSocket, so the
+page updates without a reload.
+
+Routes:
+
+- ``GET /``: the page; ``GET /static/<file>``: its assets.
+- ``GET /state``: the state as JSON (what the page renders; tests read it).
+- ``POST /answer`` with JSON ``{"query_id": int, "chosen": int}``: a click. The server checks it
+  first (well-formed, a known query of the current world, not answered, not already being
+  answered, ``chosen`` in range) and refuses with a message that the page shows; only then it
+  calls ``on_answer(query_id, chosen) -> (ok, message)`` in a worker thread (it blocks while
+  the posterior is re-sampled) and returns that message. Only JSON bodies are accepted, so a
+  plain HTML form on another site cannot submit an answer.
+- ``GET /ws``: WebSocket; the server sends the whole state after every change.
+
+Why Tornado: HTTP server, WebSockets and static files in one well-kept library with no
+dependencies of its own, and it is already in the venv (a dependency of Dask's distributed).
+
+Binding: 127.0.0.1 by default. Another host is allowed (a designer on another machine) with a
+logged warning: the page has no authentication. While bound to loopback, requests whose
+``Host`` header is not a loopback name are refused (a web page elsewhere cannot reach the
+server through DNS rebinding).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import copy
+import ipaddress
+import json
+import logging
+import threading
+from pathlib import Path
+from typing import Any, Callable
+
+import tornado.httpserver
+import tornado.netutil
+import tornado.web
+import tornado.websocket
+
+__all__ = ["WebDesigner", "OnAnswer", "WEB_DIR", "is_loopback"]
+
+#: Static assets of the page.
+WEB_DIR = Path(__file__).resolve().parent
+
+#: The node's answer callback: ``(query_id, chosen) -> (ok, message)``; blocks until answered.
+OnAnswer = Callable[[int, int], "tuple[bool, str]"]
+
+_LOOPBACK_NAMES = frozenset({"localhost", "localhost.localdomain"})
+
+
+def is_loopback(host: str) -> bool:
+    """True for a loopback host name or address (127.0.0.0/8, ::1, localhost)."""
+    name = host.strip().strip("[]").lower()
+    if name in _LOOPBACK_NAMES:
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
+
+
+def _host_of(header: str) -> str:
+    """The host part of an HTTP ``Host`` header (``name``, ``name:port``, ``[v6]:port``)."""
+    if header.startswith("["):
+        return header[1 : header.find("]")] if "]" in header else header
+    return header.rsplit(":", 1)[0] if header.count(":") == 1 else header
+
+
+def _option_letter(index: int) -> str:
+    return chr(ord("A") + index) if 0 <= index < 26 else str(index)
+
+
+class _State:
+    """What the page shows; every method is called with the WebDesigner's lock held."""
+
+    def __init__(self) -> None:
+        self.version = 0
+        self.world: dict[str, Any] | None = None
+        self.queries: dict[int, dict[str, Any]] = {}  # query_id -> latest record, this world
+        self.stale: set[int] = set()  # ids of earlier worlds' queries
+        self.pending: set[int] = set()  # ids whose answer is being sent from this page
+        self.accepted: dict[int, int] = {}  # id -> option accepted from this page
+        self.posterior: dict[str, Any] | None = None
+        self.risk_map: dict[str, Any] | None = None
+
+    def history(self) -> list[dict[str, Any]]:
+        answered = [r for r in self.queries.values() if r.get("chosen", -1) >= 0]
+        return sorted(answered, key=lambda r: r["query_id"])
+
+    def open_query(self) -> dict[str, Any] | None:
+        """The newest query not answered (nor accepted from this page)."""
+        open_ids = [q for q, r in self.queries.items() if r.get("chosen", -1) < 0 and q not in self.accepted]
+        return self.queries[max(open_ids)] if open_ids else None
+
+    def snapshot(self) -> dict[str, Any]:
+        return {
+            "version": self.version,
+            "world": self.world,
+            "query": self.open_query(),
+            "pending": sorted(self.pending),
+            "history": self.history(),
+            "posterior": self.posterior,
+            "risk_map": self.risk_map,
+        }
+
+    def refusal(self, query_id: int, chosen: int) -> str | None:
+        """Why the click ``(query_id, chosen)`` must not be sent, or None if it may."""
+        if query_id in self.stale:
+            return f"query_id: query {query_id} belongs to an earlier world; it can no longer be answered"
+        record = self.queries.get(query_id)
+        if record is None:
+            return f"query_id: unknown query {query_id} (no such question was asked on this page)"
+        if record.get("chosen", -1) >= 0:
+            who = record.get("answered_by") or "someone"
+            return (f"query_id: query {query_id} was already answered "
+                    f"(Option {_option_letter(int(record['chosen']))}, by {who}); nothing changed")
+        if query_id in self.accepted:
+            return (f"query_id: query {query_id} was already answered from this page "
+                    f"(Option {_option_letter(self.accepted[query_id])}); nothing changed")
+        if query_id in self.pending:
+            return f"query_id: an answer to query {query_id} is already being sent; wait for the new posterior"
+        num_options = len(record.get("options", ()))
+        if not 0 <= chosen < num_options:
+            return (f"chosen: option {chosen} is out of range: query {query_id} has {num_options} options "
+                    f"(0..{num_options - 1})")
+        return None
+
+
+def _parse_answer(body: bytes) -> tuple[int, int]:
+    """``(query_id, chosen)`` of a JSON answer body; ValueError naming the bad field."""
+    try:
+        data = json.loads(body or b"null")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"body: not JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError('body: expected a JSON object {"query_id": int, "chosen": int}')
+    values = []
+    for field in ("query_id", "chosen"):
+        value = data.get(field)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"{field}: expected an integer, got {value!r}")
+        if not 0 <= value < 2**32:
+            raise ValueError(f"{field}: {value} is out of range (0..2^32-1)")
+        values.append(value)
+    return values[0], values[1]
+
+
+def _check_host(handler: Any) -> None:
+    """Refuse a request whose Host is not a loopback name while bound to loopback."""
+    if handler.web.loopback_only and not is_loopback(_host_of(handler.request.host)):
+        raise tornado.web.HTTPError(403, reason="Host not allowed")
+
+
+class _Handler(tornado.web.RequestHandler):
+    """Base handler: the designer object, and the loopback Host check."""
+
+    def initialize(self, web: "WebDesigner") -> None:
+        self.web = web
+
+    def prepare(self) -> None:
+        _check_host(self)
+
+    def set_default_headers(self) -> None:
+        self.set_header("Cache-Control", "no-store")
+        self.set_header("X-Content-Type-Options", "nosniff")
+
+
+class _PageHandler(_Handler):
+    def get(self) -> None:
+        self.set_header("Content-Type", "text/html; charset=utf-8")
+        self.write((WEB_DIR / "index.html").read_bytes())
+
+
+class _StateHandler(_Handler):
+    def get(self) -> None:
+        self.set_header("Content-Type", "application/json")
+        self.write(self.web.state_json())
+
+
+class _AnswerHandler(_Handler):
+    def check_xsrf_cookie(self) -> None:
+        # Cross-site forms cannot send JSON; the Content-Type check below replaces a cookie.
+        return None
+
+    def _reply(self, status: int, ok: bool, message: str) -> None:
+        self.set_status(status)
+        self.set_header("Content-Type", "application/json")
+        self.write(json.dumps({"ok": ok, "message": message}))
+
+    async def post(self) -> None:
+        if self.request.headers.get("Content-Type", "").split(";")[0].strip() != "application/json":
+            return self._reply(415, False, "Content-Type: answers must be sent as application/json")
+        try:
+            query_id, chosen = _parse_answer(self.request.body)
+        except ValueError as exc:
+            return self._reply(400, False, str(exc))
+        status, ok, message = await self.web.answer(query_id, chosen)
+        self._reply(status, ok, message)
+
+
+class _SocketHandler(tornado.websocket.WebSocketHandler):
+    def initialize(self, web: "WebDesigner") -> None:
+        self.web = web
+
+    def prepare(self) -> None:
+        _check_host(self)
+
+    def open(self) -> None:
+        self.web._sockets.add(self)
+        self.write_message(self.web.state_json())
+
+    def on_message(self, message: str | bytes) -> None:
+        return None  # clicks go through POST /answer
+
+    def on_close(self) -> None:
+        self.web._sockets.discard(self)
+
+
+class WebDesigner:
+    """HTTP + WebSocket server of the designer page, in its own thread (see the module doc).
+
+    Args:
+        host: address to bind (default loopback; another one is logged as a warning).
+        port: TCP port; 0 = a free port chosen by the OS (``url`` tells it after ``start``).
+        on_answer: ``(query_id, chosen) -> (ok, message)``, called from a worker thread of the
+            server for each click that passed the server's checks; it may block.
+        logger: anything with ``info``/``warning``/``error`` (an rclpy logger), default
+            ``logging.getLogger(__name__)``.
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 8765, on_answer: OnAnswer | None = None,
+                 logger: Any = None) -> None:
+        if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
+            raise ValueError(f"port: expected an integer in 0..65535, got {port!r}")
+        if not isinstance(host, str) or not host:
+            raise ValueError(f"host: expected a host name or address, got {host!r}")
+        if on_answer is None:
+            raise ValueError("on_answer: a callback (query_id, chosen) -> (ok, message) is required")
+        self.host = host
+        self.port = port
+        self.on_answer = on_answer
+        self.log = logger if logger is not None else logging.getLogger(__name__)
+        self.loopback_only = is_loopback(host)
+        if not self.loopback_only:
+            self.log.warning(f"designer web page configured on {host}, not loopback: anyone who can "
+                             "reach this address can answer the robot's queries (no authentication)")
+        self._lock = threading.Lock()
+        self._state = _State()
+        self._sockets: set[_SocketHandler] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._server: tornado.httpserver.HTTPServer | None = None
+        # One worker: clicks are sent one after another, as the inference node takes them.
+        self._workers = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="web-answer")
+        self._bound_port: int | None = None
+
+    # ------------------------------------------------------------------ life cycle
+
+    @property
+    def url(self) -> str:
+        """The page's address (the bound port once started)."""
+        port = self._bound_port if self._bound_port is not None else self.port
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{port}/"
+
+    def start(self) -> None:
+        """Bind, then serve in a daemon thread; returns once the server accepts connections."""
+        if self._thread is not None:
+            raise RuntimeError("WebDesigner already started")
+        sockets = tornado.netutil.bind_sockets(self.port, address=self.host)  # errors surface here
+        self._bound_port = sockets[0].getsockname()[1]
+        ready = threading.Event()
+        self._thread = threading.Thread(target=self._serve, args=(sockets, ready), name="designer-web",
+                                        daemon=True)
+        self._thread.start()
+        ready.wait()
+
+    def _serve(self, sockets: list[Any], ready: threading.Event) -> None:
+        loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(loop)
+        self._loop = loop
+        app = tornado.web.Application([
+            (r"/", _PageHandler, {"web": self}),
+            (r"/state", _StateHandler, {"web": self}),
+            (r"/answer", _AnswerHandler, {"web": self}),
+            (r"/ws", _SocketHandler, {"web": self}),
+            (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(WEB_DIR)}),
+        ], websocket_ping_interval=20)
+        self._server = tornado.httpserver.HTTPServer(app)
+        self._server.add_sockets(sockets)
+        loop.call_soon(ready.set)
+        try:
+            loop.run_forever()
+        finally:
+            loop.run_until_complete(loop.shutdown_asyncgens())
+            loop.close()
+
+    def stop(self) -> None:
+        """Close the server and its connections and join the thread (idempotent)."""
+        thread, loop = self._thread, self._loop
+        if thread is None or loop is None or not thread.is_alive():
+            self._workers.shutdown(wait=False, cancel_futures=True)
+            return
+
+        async def _shutdown() -> None:
+            assert self._server is not None
+            self._server.stop()
+            for sock in list(self._sockets):
+                sock.close()
+            await self._server.close_all_connections()
+            loop.stop()
+
+        loop.call_soon_threadsafe(lambda: loop.create_task(_shutdown()))
+        thread.join(10.0)
+        self._workers.shutdown(wait=False, cancel_futures=True)
+
+    def __enter__(self) -> "WebDesigner":
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ node -> page
+
+    def show_world(self, world: dict[str, Any]) -> None:
+        """The map to draw: ``height``, ``width``, ``class_names``, ``classes`` (H rows of W
+        ints, row 0 = bottom, 255 = unknown), ``start`` ([row, col] or None), ``stamp``.
+        A world with a new stamp makes the queries shown so far stale."""
+        with self._lock:
+            old = self._state.world
+            if old is not None and old.get("stamp") != world.get("stamp"):
+                self._state.stale.update(self._state.queries)
+                self._state.queries.clear()
+                self._state.accepted.clear()
+                self._state.risk_map = None
+            self._state.world = copy.deepcopy(world)
+        self._changed()
+
+    def show_query(self, record: dict[str, Any]) -> None:
+        """A new open query: ``query_id``, ``options`` (q lists of [row, col] cells),
+        ``feature_names``, ``option_features`` (q x d), ``information_gain``, ``strategy``, ..."""
+        self._put_record(record)
+
+    def show_answer(self, record: dict[str, Any]) -> None:
+        """A query got answered (by anyone): the record with ``chosen`` >= 0 and ``answered_by``."""
+        self._put_record(record)
+
+    def _put_record(self, record: dict[str, Any]) -> None:
+        query_id = int(record["query_id"])
+        with self._lock:
+            self._state.stale.discard(query_id)
+            known = self._state.queries.get(query_id)
+            if known is not None and known.get("chosen", -1) >= 0 and record.get("chosen", -1) < 0:
+                return  # a re-shown proposal never reopens an answered query
+            self._state.queries[query_id] = copy.deepcopy(record)
+        self._changed()
+
+    def show_posterior(self, posterior: dict[str, Any] | None, risk_map: dict[str, Any] | None) -> None:
+        """The current belief: ``posterior`` (``feature_names``, ``mean``, ``std``,
+        ``num_samples``, ``num_answers``, ``method``, ``converged``, ...) and ``risk_map``
+        (``height``, ``width``, ``values`` H rows of W ints in 0..100, -1 unknown) or None."""
+        with self._lock:
+            if posterior is not None:
+                self._state.posterior = copy.deepcopy(posterior)
+            if risk_map is not None:
+                self._state.risk_map = copy.deepcopy(risk_map)
+        self._changed()
+
+    # ------------------------------------------------------------------ state and clicks
+
+    def state(self) -> dict[str, Any]:
+        """A copy of what the page shows (the JSON of ``GET /state``)."""
+        with self._lock:
+            return copy.deepcopy(self._state.snapshot())
+
+    def state_json(self) -> str:
+        with self._lock:
+            return json.dumps(self._state.snapshot(), allow_nan=False, default=float)
+
+    def _changed(self) -> None:
+        with self._lock:
+            self._state.version += 1
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(self._broadcast)
+            except RuntimeError:
+                pass  # the loop closed meanwhile: no page to update
+
+    def _broadcast(self) -> None:
+        message = self.state_json()
+        for sock in list(self._sockets):
+            try:
+                sock.write_message(message)
+            except tornado.websocket.WebSocketClosedError:
+                self._sockets.discard(sock)
+
+    async def answer(self, query_id: int, chosen: int) -> tuple[int, bool, str]:
+        """Check a click, then send it through ``on_answer``; ``(http_status, ok, message)``."""
+        with self._lock:
+            refusal = self._state.refusal(query_id, chosen)
+            if refusal is None:
+                self._state.pending.add(query_id)
+        if refusal is not None:
+            status = 404 if refusal.startswith("query_id: unknown") else 400 if refusal.startswith("chosen") else 409
+            self.log.info(f"designer web page refused an answer: {refusal}")
+            return status, False, refusal
+        self._changed()
+        loop = asyncio.get_running_loop()
+        try:
+            ok, message = await loop.run_in_executor(self._workers, self.on_answer, query_id, chosen)
+        except Exception as exc:  # a failing callback is a refused answer, the server keeps serving
+            self.log.error(f"designer web page: on_answer({query_id}, {chosen}) raised {exc!r}")
+            ok, message = False, f"error: {exc}"
+        with self._lock:
+            self._state.pending.discard(query_id)
+            if ok:
+                self._state.accepted[query_id] = chosen
+        self._changed()
+        return (200 if ok else 409), bool(ok), str(message)
