@@ -1,6 +1,6 @@
 """Argument validation: bad input is a ``ValueError`` naming its field; the ranges of every number.
 
-The ranges (IRD spec section 8, Limits) are written here once. They keep every quantity the
+The ranges (docs/spec.md section 8, Limits) are written here once. They keep every quantity the
 library computes finite with room to spare (``beta * |w| * |F| * (T + 1)`` stays below 1e14 for
 horizons up to 1e4, far from float64 overflow), so a number out of range is refused up front
 by name rather than surfacing later as an overflow, a NaN or a solver failure:

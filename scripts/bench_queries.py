@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark: one query round against one ``sample_posterior`` call (IRD_SPEC 7, issue target).
+"""Benchmark: one query round against one ``sample_posterior`` call (docs/spec.md section 7, issue target).
 
 A query round = ``queries.propose_query`` (2 options, info_gain) on the test map from the
 posterior's 1000 samples, a simulated designer's answer (Boltzmann on the true returns), and

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Run the designer-in-the-loop experiment (IRD_SPEC section 7): answered queries vs risk aversion.
+"""Run the designer-in-the-loop experiment (docs/spec.md section 7): answered queries vs risk aversion.
 
     .venv/bin/python scripts/run_active.py [--trials N] [--out DIR] [--seed S] [--conditions C ...]
         [--workers W] [--scheduler tcp://HOST:PORT] [--size N] [--horizon T] [--num-samples K] ...

@@ -56,7 +56,7 @@ def test_bad_world_file_exits_2_naming_the_key(tmp_path: Path, capsys) -> None:
 
 
 def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> None:
-    """Two training worlds: the trial's IRD plan is the plan of the joint posterior (IRD_SPEC 7)
+    """Two training worlds: the trial's IRD plan is the plan of the joint posterior (docs/spec.md section 7)
     seeded from the trial seed, not of the first world's posterior alone."""
     path = ROOT / "worlds" / "two_training_worlds.yaml"
     spec = ex.TrialSpec(condition=lavaland.FILE_CONDITION, seed=5, world=str(path), **SMALL)

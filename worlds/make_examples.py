@@ -115,7 +115,7 @@ def main() -> None:
            "The paper's Figure 1: dirt path, grass, a target; at test, lava on the shortcut.\n"
            "The designer never saw lava, so her proxy gives it weight 0.")
     _world("pot_of_gold", lava + ["gold"], [("train", FIGURE1_TRAIN)], GOLD_TEST, 20, [0.1, -0.2, 1.0, 0.0, 0.0],
-           "Pot of gold (IRD_SPEC 7): the test world adds lava and gold, neither seen in training.")
+           "Pot of gold (docs/spec.md section 7): the test world adds lava and gold, neither seen in training.")
     _world("two_training_worlds", lava, [("train1", TWO_TRAIN_1), ("train2", TWO_TRAIN_2)], TWO_TEST, 20,
            [0.1, -0.2, 1.0, 0.0],
            "Two training worlds: the first has no grass, so it says nothing about grass; the second\n"

@@ -1,6 +1,6 @@
 """Queries to the reward designer: information gain, query proposal, a simulated designer.
 
-IRD_SPEC.md section 7. The robot shows the designer ``q`` paths of the query MDP (by default the
+docs/spec.md section 7. The robot shows the designer ``q`` paths of the query MDP (by default the
 test map it is about to drive) and asks which one they prefer; the answer enters the posterior as
 an ``ird_core.posterior.evidence.ChoiceObservation`` with the Boltzmann likelihood
 ``P(k | w) = softmax_k(beta * F @ w)``, ``F`` the options' feature counts ``(q, d)``.

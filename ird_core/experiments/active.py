@@ -1,4 +1,4 @@
-"""The designer in the loop (IRD_SPEC.md section 7): does asking the designer a few questions
+"""The designer in the loop (docs/spec.md section 7): does asking the designer a few questions
 recover what risk-averse IRD gives up? Pure numpy/scipy, no ROS, no parallelism (the script
 ``scripts/run_active.py`` maps :func:`run_trial` over seeds).
 

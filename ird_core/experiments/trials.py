@@ -1,4 +1,4 @@
-"""Lavaland experiments (IRD_SPEC.md section 5): literal vs IRD, Sample-Z vs MaxEnt-Z, and the
+"""Lavaland experiments (docs/spec.md section 5): literal vs IRD, Sample-Z vs MaxEnt-Z, and the
 appendix factorial of min-granularity x reward baseline. Pure numpy/scipy, no ROS.
 
 One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
@@ -38,7 +38,7 @@ of workers or the order in which trials finish.
 World files (``TrialSpec.world``, ``scripts/run_experiments.py --world FILE``): the trial runs
 on the file's instance (:func:`ird_core.worlds.world_file.load_world`; its size, horizons and
 observations are the file's) and the posterior is the joint one over every training world of
-the file (``lavaland.proxy_observations``, IRD_SPEC 7). The world is fixed, so the trials of a
+the file (``lavaland.proxy_observations``, docs/spec.md section 7). The world is fixed, so the trials of a
 file differ only in the trial seed ``S + i``, which seeds the sampler and the Sample-Z proxies:
 they measure how the outcome varies with the posterior's randomness, not with the map. The true
 return uses the file's true rewards (NaN when the file gives none).

@@ -1,6 +1,6 @@
 """Deterministic finite-horizon grid MDPs and exact maximum-entropy trajectory inference.
 
-Conventions (IRD_SPEC.md section 1):
+Conventions (docs/spec.md section 1):
 
 - A map is a feature array ``F`` of shape ``(H, W, d)``; cell ``(row, col)`` has state index
   ``s = row * W + col``; row 0 is the bottom row.

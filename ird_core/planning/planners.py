@@ -1,4 +1,4 @@
-"""Literal and risk-averse planning with posterior reward samples (IRD_SPEC.md section 4).
+"""Literal and risk-averse planning with posterior reward samples (docs/spec.md section 4).
 
 Given ``K`` posterior samples ``w_i`` (a ``(K, d)`` batch) and a test map, a planner returns a
 path of ``T + 1`` cells from the start and the exact value of the objective it maximises:

@@ -1,4 +1,4 @@
-"""Exact solver of the ``trajectory`` planning mode (IRD_SPEC.md section 4).
+"""Exact solver of the ``trajectory`` planning mode (docs/spec.md section 4).
 
 ``max_xi min_i f_i(xi)`` with ``f_i(xi) = sum_t q_i(s_t)`` and ``q_i = w_i . F - b_i`` (``K``
 baseline-shifted per-cell rewards) is not an MDP: the minimum over samples does not decompose

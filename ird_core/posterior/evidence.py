@@ -1,4 +1,4 @@
-"""The designer's evidence and the joint IRD log posterior (IRD_SPEC.md sections 3 and 7).
+"""The designer's evidence and the joint IRD log posterior (docs/spec.md sections 3 and 7).
 
 Evidence kinds, all in one weight space ``R^d``:
 
@@ -79,7 +79,7 @@ def _frozen(array: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ProxyObservation:
-    """The designer wrote ``proxy_weights`` for ``train_mdp`` (IRD_SPEC 3 and 7).
+    """The designer wrote ``proxy_weights`` for ``train_mdp`` (docs/spec.md sections 3 and 7).
 
     Attributes:
         proxy_weights: ``(d,)`` the proxy ``w~``; ``(p,)`` of any length when ``proxy_features``
@@ -120,7 +120,7 @@ class ProxyObservation:
 
 @dataclass(frozen=True, eq=False)
 class ChoiceObservation:
-    """The designer chose option ``chosen`` among ``q >= 2`` shown paths (IRD_SPEC 7).
+    """The designer chose option ``chosen`` among ``q >= 2`` shown paths (docs/spec.md section 7).
 
     ``P(chosen | w) = exp(beta w . f_chosen) / sum_k exp(beta w . f_k)``.
 
@@ -337,7 +337,7 @@ def joint_log_posterior(weights: np.ndarray, observations: "Sequence[Observation
                         beta: float, method: str, prior_sigma: float = 1.0,
                         proxy_samples: "np.ndarray | None" = None, *, seed: int = 0,
                         num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:
-    """Unnormalised joint IRD log posterior of candidate weights (IRD_SPEC 7).
+    """Unnormalised joint IRD log posterior of candidate weights (docs/spec.md section 7).
 
     Args:
         weights: ``(K, d)`` candidates ``w``.
@@ -364,7 +364,7 @@ def joint_log_posterior_grad(weights: np.ndarray, observations: "Sequence[Observ
 
 
 # --------------------------------------------------------------------------------------------
-# Single proxy (IRD_SPEC 3): the joint posterior with one ProxyObservation
+# Single proxy (docs/spec.md section 3): the joint posterior with one ProxyObservation
 # --------------------------------------------------------------------------------------------
 
 
@@ -385,7 +385,7 @@ def log_posterior(weights: np.ndarray, proxy_weights: np.ndarray, train_mdp: Gri
                   proxy_features: "np.ndarray | None" = None,
                   proxy_sample_features: "np.ndarray | None" = None, seed: int = 0,
                   num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:
-    """Unnormalised IRD log posterior of candidate weights (IRD_SPEC 3).
+    """Unnormalised IRD log posterior of candidate weights (docs/spec.md section 3).
 
     Args:
         weights: ``(K, d)`` candidates ``w``.

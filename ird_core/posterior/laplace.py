@@ -1,4 +1,4 @@
-"""The Laplace start of the IRD posterior sampler: the mode and a covariance there (IRD_SPEC 3).
+"""The Laplace start of the IRD posterior sampler: the mode and a covariance there (docs/spec.md section 3).
 
 ``laplace_approximation`` gives ``ird_core.posterior.sampler`` its chains' starting points
 (``mode + 2 L z``) and its initial HMC metric. Damped Newton finds the mode of a smooth posterior

@@ -1,4 +1,4 @@
-"""Per-term log likelihoods of the IRD posterior and their exact gradients (IRD_SPEC 3 and 7).
+"""Per-term log likelihoods of the IRD posterior and their exact gradients (docs/spec.md sections 3 and 7).
 
 Every function is batched over candidate weights ``(K, d)``. The MDP quantities they consume
 (``log Z(w)``, ``phi~(w)``) are computed by the caller (``ird_core.posterior.evidence``) in one batched pass

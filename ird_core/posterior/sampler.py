@@ -1,4 +1,4 @@
-"""The IRD posterior sampler: Laplace start, batched HMC, diagnostics (IRD_SPEC 3 and 7).
+"""The IRD posterior sampler: Laplace start, batched HMC, diagnostics (docs/spec.md sections 3 and 7).
 
 ``sample_joint_posterior`` draws from the joint posterior of ``ird_core.posterior.evidence``;
 ``sample_posterior`` is it with one ``ProxyObservation``. The method (Laplace approximation,
@@ -333,7 +333,7 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
                            initial: "Posterior | None" = None,
                            until_converged: "RunUntil | None" = None,
                            progress: "ProgressFn | None" = None) -> Posterior:
-    """Draw ``num_samples`` weights from the joint IRD posterior with batched MCMC (IRD_SPEC 7).
+    """Draw ``num_samples`` weights from the joint IRD posterior with batched MCMC (docs/spec.md section 7).
 
     Args:
         observations: ``ProxyObservation`` s and ``ChoiceObservation`` s (``ird_core.posterior.evidence``),
@@ -561,7 +561,7 @@ def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
                      proxy_features: "np.ndarray | None" = None,
                      proxy_sample_features: "np.ndarray | None" = None,
                      **sampler_options) -> Posterior:
-    """Draw ``num_samples`` weights from the single-proxy IRD posterior (IRD_SPEC 3):
+    """Draw ``num_samples`` weights from the single-proxy IRD posterior (docs/spec.md section 3):
     ``sample_joint_posterior([ProxyObservation(proxy_weights, train_mdp, proxy_features,
     proxy_sample_features)], beta, method, num_samples, seed, prior_sigma, proxy_samples,
     **sampler_options)``.

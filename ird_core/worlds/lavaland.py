@@ -57,7 +57,7 @@ grass -0.2, target 1) are those of the true reward:
   classifier assigns each lava cell to some safe class, confidently (probability > 0.9) for
   87% of lava observations, so the proxy values a lava cell like dirt, grass or target.
 
-* ``pot_of_gold`` (IRD_SPEC section 7, the paper's own example of what risk aversion gives up):
+* ``pot_of_gold`` (docs/spec.md section 7, the paper's own example of what risk aversion gives up):
   indicator features [dirt, grass, target, lava, gold] (d = 5); neither lava nor gold occurs
   in training (both indicators are all zero there). The test map is the other conditions' test
   map of the same seed (same lava, target and start) with about 3% of the cells

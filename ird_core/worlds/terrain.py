@@ -1,6 +1,6 @@
 """Lavaland terrain maps: the map distribution of Section 5 of the IRD paper, sampled by MCMC.
 
-Conventions (IRD_SPEC.md section 1): a map is an ``(H, W)`` array of :class:`Terrain` labels,
+Conventions (docs/spec.md section 1): a map is an ``(H, W)`` array of :class:`Terrain` labels,
 cell ``(row, col)``, row 0 is the bottom row.
 
 Map distribution

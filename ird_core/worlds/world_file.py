@@ -48,7 +48,7 @@ Keys:
 * ``proxy``: the proxy weights (one per proxy feature) for every training world that gives no
   ``proxy`` of its own; ``proxy_intercept`` (optional, default 0) a constant per-cell term.
 * ``training_worlds`` (required, >= 1): ``image``, ``start: [row, col]``, ``horizon`` (T >= 1
-  moves), optional ``proxy``. Each is one ``ProxyObservation`` (IRD_SPEC 7,
+  moves), optional ``proxy``. Each is one ``ProxyObservation`` (docs/spec.md section 7,
   :func:`ird_core.worlds.lavaland.proxy_observations`): the first is the instance's ``train_*``,
   the others ``extra_training_worlds``.
 * ``test_world`` (required): ``image``, ``start``, ``horizon``.

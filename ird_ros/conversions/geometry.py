@@ -1,4 +1,4 @@
-"""Map frame <-> grid cell geometry, free of ROS (IRD spec, section 6).
+"""Map frame <-> grid cell geometry, free of ROS (docs/spec.md section 6).
 
 A grid of H rows and W columns lies in frame ``map`` with the corner of cell ``(0, 0)`` at
 ``origin`` and square cells of side ``resolution``; row 0 is the bottom row, x grows with the

@@ -1,7 +1,7 @@
 """numpy <-> ROS grid messages: FeatureGrid, TerrainGrid, OccupancyGrid (and MapMetaData, Header).
 
 Part of :mod:`ird_ros.conversions` (which re-exports every public name here; import that).
-Grid convention (IRD spec, section 6): a map of H rows and W columns is a numpy array
+Grid convention (docs/spec.md section 6): a map of H rows and W columns is a numpy array
 indexed ``[row, col, ...]`` in C order; row 0 is the bottom row, x grows with the column
 and y with the row (the geometry itself is in :mod:`ird_ros.conversions.geometry`).
 

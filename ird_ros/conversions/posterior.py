@@ -4,7 +4,7 @@ Import this module (``from ird_ros import conversions as conv``): it holds the p
 weights and Path conversions and re-exports the grid ones (:mod:`ird_ros.conversions.grids`)
 and the cell geometry (:mod:`ird_ros.conversions.geometry`), so ``conv.X`` is the one name of each.
 
-Grid convention (IRD spec, section 6): a map of H rows and W columns is a numpy array
+Grid convention (docs/spec.md section 6): a map of H rows and W columns is a numpy array
 indexed ``[row, col, ...]`` in C order; row 0 is the bottom row, x grows with the column
 and y with the row, and the centre of cell ``(row, col)`` is at
 ``x = origin_x + (col + 0.5) * resolution``, ``y = origin_y + (row + 0.5) * resolution``

@@ -1,4 +1,4 @@
-"""Names of the IRD ROS graph (IRD spec, section 6) and the QoS profiles of its topics.
+"""Names of the IRD ROS graph (docs/spec.md section 6) and the QoS profiles of its topics.
 
 Every node, test, launcher and recorder takes topic and service names from here.
 

@@ -39,7 +39,7 @@ as ``ird_core.worlds.lavaland.proxy_prior_features`` does) and counted the same 
 (``proxy_sample_features``). See :func:`proxy_map_terms` and :func:`run_inference`; the
 request's ``p`` proxy weights are recorded in the posterior as they are.
 
-Several training worlds (IRD spec section 7): each ``training_worlds[i]`` (TrainingWorld) is one
+Several training worlds (docs/spec.md section 7): each ``training_worlds[i]`` (TrainingWorld) is one
 more ``ProxyObservation`` after the request's own training map; its ``training_map`` must have the
 request's layers (the same hypothesis space, any grid size), its ``proxy_map`` is optional as
 above, empty ``proxy_weights`` = the request's. Bad fields fail naming ``training_worlds[i].<field>``.
@@ -52,7 +52,7 @@ Concurrency: requests are computed one at a time in arrival order (``max_workers
 default); invalid requests never queue; more than ``max_pending`` valid requests waiting at once
 get ``success: false`` ("busy"); see ``ird_ros.runtime.offload``.
 
-Questions to the designer (IRD spec section 7; the evidence's lifetime is documented in
+Questions to the designer (docs/spec.md section 7; the evidence's lifetime is documented in
 :mod:`ird_ros.jobs.inference_queries`):
 
 - ``/ird/query`` (ProposeQuery) proposes ``queries.propose_query(query_mdp, samples, answer_beta,

@@ -1,4 +1,4 @@
-"""The joint IRD posterior (IRD_SPEC 7): several training MDPs and answered queries.
+"""The joint IRD posterior (docs/spec.md section 7): several training MDPs and answered queries.
 
 Ground truth is brute-force enumeration of every trajectory (``ird_core.mdp.enumeration``) and a 2-d
 grid quadrature of the brute-force density.
@@ -40,7 +40,7 @@ def random_options(mdp: GridMDP, q: int, rng: np.random.Generator) -> np.ndarray
 
 def brute_joint(weights: np.ndarray, observations: list, beta: float, method: str, sigma: float,
                 proxy_samples: np.ndarray) -> np.ndarray:
-    """IRD_SPEC 7 written out with enumeration: prior + proxy terms + choice terms."""
+    """docs/spec.md section 7 written out with enumeration: prior + proxy terms + choice terms."""
     total = -0.5 * np.sum(weights**2, axis=1) / sigma**2
     for obs in observations:
         if isinstance(obs, I.ChoiceObservation):

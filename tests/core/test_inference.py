@@ -26,7 +26,7 @@ def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (3, 3), horizon: in
 
 def brute_log_posterior(weights: np.ndarray, proxy: np.ndarray, mdp: GridMDP, beta: float, method: str,
                         sigma: float, proxy_samples: np.ndarray) -> np.ndarray:
-    """IRD_SPEC section 3 with every phi~ and log Z from enumerating all trajectories."""
+    """docs/spec.md section 3 with every phi~ and log Z from enumerating all trajectories."""
     phi_proxy = brute_feature_expectations(mdp, proxy[None])[0]
     prior = -0.5 * np.sum(weights**2, axis=1) / sigma**2
     if method == "maxent_z":

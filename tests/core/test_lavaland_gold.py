@@ -1,4 +1,4 @@
-"""The pot_of_gold condition (IRD_SPEC sections 5 and 7): gold and lava only at test, their shares,
+"""The pot_of_gold condition (docs/spec.md sections 5 and 7): gold and lava only at test, their shares,
 the arbitrary proxy weights, outcomes on hand-made paths, pairing with the other conditions,
 rendering, and the paper's four conditions unchanged by the new terrain."""
 

@@ -1,4 +1,4 @@
-"""Queries to the designer (IRD_SPEC 7): information gain, proposal, simulated designer."""
+"""Queries to the designer (docs/spec.md section 7): information gain, proposal, simulated designer."""
 
 from __future__ import annotations
 

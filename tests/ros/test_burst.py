@@ -1,4 +1,4 @@
-"""A burst of concurrent /ird/infer clients: every request gets an answer (IRD spec, Limits).
+"""A burst of concurrent /ird/infer clients: every request gets an answer (docs/spec.md section 8).
 
 32 client nodes (each its own DDS participant, as separate client programs would be) discover
 the service, then all call it at once. Every call must be answered: a posterior, or

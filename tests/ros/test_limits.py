@@ -1,4 +1,4 @@
-"""The planner's limits over real DDS (IRD spec section 8): sizes refused before work starts with
+"""The planner's limits over real DDS (docs/spec.md section 8): sizes refused before work starts with
 the field and the limit named, out-of-range numbers named, a trajectory plan bounded by
 ``time_limit`` and answered as a fallback, and a short plan never waiting behind a long one."""
 
