@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ird_core.vocabulary import METHODS
+from ird_core.vocabulary import ZMethod, parse
 
 __all__ = ["MAX_ABS_WEIGHT", "MAX_ABS_FEATURE", "BETA_RANGE", "PRIOR_SIGMA_RANGE", "RANGES", "check_int",
            "check_real", "check_array", "check_magnitude", "check_posterior_arguments"]
@@ -104,8 +104,7 @@ def check_posterior_arguments(proxy_weights: object, num_proxy_features: int, be
     Raises:
         ValueError: naming ``method``, ``beta``, ``num_samples``, ``prior_sigma`` or ``proxy_weights``.
     """
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    parse(ZMethod, method, "method")
     check_real("beta", beta, positive=False)
     check_int("num_samples", num_samples, 1)
     check_real("prior_sigma", prior_sigma, positive=True)

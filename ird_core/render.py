@@ -3,7 +3,7 @@
 Row 0 is drawn at the bottom (``origin="lower"``), like ``nav_msgs/OccupancyGrid``: x is the
 column, y the row. Colours follow the paper's figures: target yellow, dirt brown, grass green,
 lava red; gold (pot_of_gold only) is orange, apart from the target's yellow
-(:data:`TERRAIN_COLORS`, indexed by :class:`ird_core.worlds.terrain.Terrain`). The legend lists the
+(:data:`ird_core.worlds.terrain.TERRAIN_COLORS`, indexed by :class:`ird_core.worlds.terrain.Terrain`). The legend lists the
 terrains present on the map.
 
 Figures are built on ``matplotlib.figure.Figure`` with an explicit Agg canvas, never
@@ -25,10 +25,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES
+from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES
 
 __all__ = [
-    "TERRAIN_COLORS",
     "DPI",
     "PANEL_SIZE_INCHES",
     "TITLE_HEIGHT_INCHES",
@@ -39,8 +38,6 @@ __all__ = [
     "save_mission_figure",
 ]
 
-#: RGB hex per Terrain: dirt brown, grass green, target yellow, lava red, gold orange.
-TERRAIN_COLORS: tuple[str, ...] = ("#8b5a2b", "#3c9a3c", "#ffd400", "#e0201b", "#ff8c00")
 DPI: int = 100
 PANEL_SIZE_INCHES: float = 4.0
 TITLE_HEIGHT_INCHES: float = 0.5

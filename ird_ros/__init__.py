@@ -1,10 +1,16 @@
-"""ird_ros: the ROS 2 Jazzy side of the Inverse Reward Design stack.
+"""ird_ros: the ROS 2 Jazzy side of the Inverse Reward Design stack (docs/spec.md section 6).
 
-Nodes (world, perception, inference, planner, rob, recorder) wrap the pure-numpy
-``ird_core`` library; ``ird_ros.conversions`` is the single place where numpy arrays
-become ``ird_msgs`` / ``nav_msgs`` messages and back. ``ird_ros.launch.launcher`` starts the graph
-(on the ROS-free ``ird_ros.launch.supervisor`` and the rclpy ``ird_ros.launch.readiness`` probe);
-``ird_ros.graph.domains`` leases private ROS domains and ``ird_ros.client.waits`` waits on the graph
-without sleeping, for scripts and tests alike; ``ird_ros.testing`` adds what only tests use
-(helper node processes).
+Sub-packages, by layer:
+
+- ``nodes``: the graph's nodes (world, perception, inference, planner, rob, designer, recorder),
+  thin rclpy shells over ``jobs`` (the ROS-free worker jobs and logic they call) and ``ird_core``;
+- ``conversions``: the single place where numpy arrays become ``ird_msgs`` / ``nav_msgs`` messages
+  and back; ``runtime``: what every node process runs on (start-up, parameters, worker pool);
+- ``graph``: topic, service and node names, node table, private ROS domains; ``launch``: starts
+  the graph; ``client``: one client of the graph for scripts and tests; ``apps``: the scripts;
+- ``bags`` (recorded bags) and ``web`` (the designer's page): ROS-free.
+
+Two ROS-free modules serve every layer: ``geometry`` (map frame <-> grid cells) and ``stamps``
+(header stamps as keys, nanoseconds, text). ``testing`` adds what only tests use. This package
+imports nothing, so ``import ird_ros.geometry`` works on a machine without ROS.
 """

@@ -3,23 +3,20 @@
 Typical use (see ``tests/conftest.py`` for the fixtures built on this)::
 
     lease = lease_domain()                      # exclusive ROS_DOMAIN_ID in 0..101
-    with ros_context(lease) as ctx:             # rclpy context in that domain
-        node = rclpy.create_node("probe", context=ctx)
-        with spawn_node_process(["-m", "ird_ros.nodes.world"], domain=lease) as proc:
-            client = node.create_client(GenerateWorld, "/world/generate")
-            wait_for_service(node, client, timeout=20.0, processes=[proc])
-            response = call_service(node, client, GenerateWorld.Request(...), timeout=20.0)
+    with spawn_node_process(["-m", "ird_ros.nodes.world"], domain=lease) as proc, \
+            IrdClient(lease.domain_id, processes=[proc]) as ird:
+        ird.wait_ready(20.0, services=(names.SRV_GENERATE,))
+        result = ird.generate_world("side_effects", 3)
 
-Nothing here sleeps: every wait spins the test's node until a condition holds or a deadline
-passes, and then raises ``TimeoutError`` that includes the output of the helper processes.
+Nothing here sleeps: every wait spins a node until a condition holds or a deadline passes, and
+then raises ``TimeoutError`` that includes the output of the helper processes.
 
-The domain helpers (``lease_domain``, ``DomainLease``, ``ros_env``, ``ros_context``) live in
-``ird_ros.graph.domains`` and the waits (``spin_until``, ``call_service``, ...) in ``ird_ros.client.waits``,
-where the launcher and the scripts use them; they are re-exported here. This module adds the
-helper processes (``NodeProcess``, ``spawn_node_process``, ``running_nodes``) and is for tests
-only.
+This module adds the helper processes (``NodeProcess``, ``spawn_node_process``, ``running_nodes``)
+and is for tests only: no production module imports it. For the tests' convenience it also
+offers the domain helpers of ``ird_ros.graph.domains`` and the waits of ``ird_ros.client.waits``
+(the client of the graph itself is ``ird_ros.client.IrdClient``).
 
-rclpy is imported lazily, so importing this module costs nothing for ROS-free tests.
+rclpy is imported lazily (when a test makes a context or a node), so ROS-free tests never load it.
 """
 
 from __future__ import annotations
@@ -54,7 +51,7 @@ from ird_ros.graph.domains import (
     ros_context,
     ros_env,
 )
-from ird_ros.launch.supervisor import child_preexec
+from ird_ros.launch.process_groups import child_preexec
 
 __all__ = [
     "running_nodes",

@@ -32,10 +32,10 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from _progress import step_progress  # noqa: E402  (scripts/_progress.py)
 
-from ird_core import posterior
-from ird_core.posterior.sampler import RunUntil  # noqa: E402
+from ird_core import posterior  # noqa: E402
+from ird_core.experiments.progress import step_progress  # noqa: E402
+from ird_core.posterior import RunUntil  # noqa: E402
 from ird_core.worlds import lavaland  # noqa: E402
 
 #: Wall-time target for one posterior on this 2-core machine, as stated in the README's benchmarks.
@@ -128,7 +128,7 @@ def levers(conditions: list[str], seeds: int, beta: float, samples: int, only: "
                 before = fields.pop("before", False)
                 proxies = fields.pop("num_proxy_samples", 100 if before else spec.num_proxy_samples)
                 inst = lavaland.make_instance(condition, seed, size=15, horizon=30, obs_dim=50)
-                obs = lavaland.proxy_observations(inst, proxies if method == "sample_z" else None, seed + 100, 1.0)
+                obs = posterior.proxy_observations(inst, proxies if method == "sample_z" else None, seed + 100, 1.0)
                 base = spec.sampler(method)
                 settings = base.for_dim(obs[0].dim)
                 if before:  # default check blocks and, for the d = 50 settings (not the small ones), _D50_BEFORE

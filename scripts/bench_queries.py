@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 
 from ird_core import posterior
 from ird_core.designer import queries  # noqa: E402
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 
 TARGET_RATIO = 1.2
 
@@ -58,10 +58,10 @@ def main() -> int:
 
     inst = lavaland.make_instance(args.condition, args.seed, size=args.size, horizon=args.horizon)
     train, test = lavaland.train_mdp(inst), lavaland.test_mdp(inst)
-    proxy_features = lavaland.proxy_feature_expectations(inst)
+    proxy_features = posterior.proxy_feature_expectations(inst)
     extra: dict = {}
     if args.method == "sample_z":  # the phi_i once, outside the timings of both (as a node would cache them)
-        extra["proxy_sample_features"] = lavaland.proxy_prior_features(inst, posterior.DEFAULT_NUM_PROXY_SAMPLES,
+        extra["proxy_sample_features"] = posterior.proxy_prior_features(inst, posterior.DEFAULT_NUM_PROXY_SAMPLES,
                                                                        args.seed)
     proxy = posterior.ProxyObservation(inst.proxy_weights, train, proxy_features, extra.get("proxy_sample_features"))
 
@@ -71,7 +71,7 @@ def main() -> int:
         cold, cold_wall, cold_cpu = timed(posterior.sample_posterior, inst.proxy_weights, train, args.beta,
                                           args.method, args.samples, r, proxy_features=proxy_features, **extra)
         query, propose_wall, propose_cpu = timed(queries.propose_query, test, cold.samples, args.answer_beta)
-        returns = np.array([lavaland.true_return(inst.test_labels, cells) for cells in query.option_cells])
+        returns = np.array([evaluation.true_return(inst.test_labels, cells) for cells in query.option_cells])
         chosen = queries.simulated_answer(returns, args.answer_beta, np.random.default_rng(r))
         evidence = [proxy, posterior.ChoiceObservation(query.option_features, chosen, args.answer_beta)]
         warm, warm_wall, warm_cpu = timed(posterior.sample_joint_posterior, evidence, args.beta, args.method,

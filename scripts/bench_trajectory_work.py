@@ -26,12 +26,13 @@ import numpy as np
 from ird_core import planning
 from ird_core.experiments import trials as experiments
 from ird_core.planning import trajectory_solver as TS
+from ird_core import posterior
 from ird_core.worlds import lavaland
 
 CONDITIONS = ("side_effects", "reward_hacking", "latent_raw", "latent_classifier")
 
 
-class _Traced(TS._Limits):
+class _Traced(TS.Limits):
     """The solver's limits, recording (work, wall seconds, CPU seconds) at every spend."""
 
     last: "_Traced | None" = None
@@ -79,7 +80,7 @@ def main() -> None:
     parser.add_argument("--cap", type=float, default=15.0, help="wall seconds per uncapped plan")
     parser.add_argument("--limits", type=float, nargs="+", default=[1e5, 3e5, 1e6, 3e6])
     args = parser.parse_args()
-    TS._Limits = _Traced  # type: ignore[misc]
+    TS.Limits = _Traced  # type: ignore[misc]
     cap_work = int(max(args.limits))
     plans = []
     for condition in CONDITIONS:
@@ -88,7 +89,7 @@ def main() -> None:
             inst = experiments.trial_instance(spec)
             post = experiments._posterior(spec, inst, "maxent_z")
             test = lavaland.test_mdp(inst)
-            reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+            reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
             samples = post.samples[: spec.factorial_samples]
             for base in experiments.BASELINES:
                 plan = run_plan(test, samples, base, reference, args.cap, cap_work)

@@ -1,129 +1,17 @@
 #!/usr/bin/env python3
 """Posterior reward per terrain for the latent_raw condition: IRD is uncertain about lava.
 
-Samples the MaxEnt-Z IRD posterior (1000 draws by default) for a ``latent_raw`` Lavaland
-instance, then shows and prints two views of the spread of the posterior reward by terrain:
-
-1. ``w_i . mu_t``: each draw's reward for the mean observation of terrain ``t`` (box plots);
-2. per-cell spread: the standard deviation over draws of ``w_i . F[cell]`` for every cell of the
-   TEST map, grouped by the cell's true terrain (box plots; the mean is printed).
-
-The designer never saw lava, so nothing in the training map pins the reward in lava's
-direction of observation space: its spread is close to the prior's, while the safe terrains'
-rewards are pinned by the proxy's behaviour.
-
-    python scripts/plot_posterior_terrain.py [out/posterior_terrain.png] [--seed 0] [--beta 1.0]
+The program is ``ird_core.experiments.posterior_terrain.main``; ``--help`` lists the flags.
+The MCMC hot path is single-threaded numpy, so BLAS is pinned to one thread before numpy loads
+(multithreaded BLAS only oversubscribes small machines); set OPENBLAS_NUM_THREADS to override.
 """
 
-from __future__ import annotations
-
-import argparse
 import os
-import time
-from pathlib import Path
+import sys
 
-# The MCMC hot path is single-threaded numpy; multithreaded BLAS only oversubscribes small
-# machines (measured: a (16, 50) x (50, 1000) product 40x slower on a loaded 2-core box).
-# Set OPENBLAS_NUM_THREADS yourself to override.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
-from _progress import step_progress  # noqa: E402  (scripts/_progress.py)
-
-from ird_core import posterior
-from ird_core.worlds import lavaland  # noqa: E402
-from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
-
-
-def observed_terrains(instance: lavaland.LavalandInstance) -> list[Terrain]:
-    """The terrains with an observation mean: the latent conditions have no gold cells."""
-    return [Terrain(k) for k in range(instance.observation_model.means.shape[0])]
-
-
-def terrain_spreads(samples: np.ndarray, instance: lavaland.LavalandInstance) -> dict[str, dict[str, float]]:
-    """Per terrain: mean and sd over draws of ``w . mu_t``, and the mean per-cell sd on the test map.
-
-    Args:
-        samples: ``(K, d)`` posterior draws.
-    Returns:
-        ``{terrain name: {"mean_reward", "sd_of_mean_reward", "cell_sd"}}`` (cell_sd NaN if the
-        terrain is absent from the test map).
-    """
-    means = instance.observation_model.means  # (T, d), indexed by Terrain
-    rewards = samples @ means.T  # (K, 4)
-    cell_sd = np.std(np.einsum("kd,hwd->khw", samples, instance.test_features, optimize=True), axis=0)
-    out = {}
-    for terrain in observed_terrains(instance):
-        mask = instance.test_labels == terrain
-        out[TERRAIN_NAMES[terrain]] = {
-            "mean_reward": float(rewards[:, terrain].mean()),
-            "sd_of_mean_reward": float(rewards[:, terrain].std()),
-            "cell_sd": float(cell_sd[mask].mean()) if mask.any() else float("nan"),
-        }
-    return out
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("output", nargs="?", default="out/posterior_terrain.png")
-    parser.add_argument("--seed", type=int, default=0, help="Lavaland instance and sampler seed")
-    parser.add_argument("--beta", type=float, default=1.0)
-    parser.add_argument("--samples", type=int, default=1000)
-    args = parser.parse_args(argv)
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    instance = lavaland.make_instance("latent_raw", args.seed)
-    start = time.perf_counter()
-    with step_progress("maxent_z MCMC") as progress:
-        result = posterior.sample_posterior(
-            instance.proxy_weights, lavaland.train_mdp(instance), args.beta, "maxent_z", args.samples, args.seed,
-            proxy_features=lavaland.proxy_feature_expectations(instance), progress=progress)
-    elapsed = time.perf_counter() - start
-    print(f"latent_raw seed {args.seed}, MaxEnt-Z, beta {args.beta:g}: {result.num_samples} samples in "
-          f"{elapsed:.1f} s; acceptance {result.acceptance_rate:.2f}, R-hat {result.r_hat_max:.3f}, "
-          f"ESS {result.ess_min:.0f}")
-
-    spreads = terrain_spreads(result.samples, instance)
-    print(f"{'terrain':<8} {'E[w.mu_t]':>10} {'sd(w.mu_t)':>11} {'mean per-cell sd (test map)':>28}")
-    for name, row in spreads.items():
-        print(f"{name:<8} {row['mean_reward']:>10.3f} {row['sd_of_mean_reward']:>11.3f} {row['cell_sd']:>28.3f}")
-    safe = [TERRAIN_NAMES[t] for t in (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET)]
-    lava = TERRAIN_NAMES[Terrain.LAVA]
-    for key, label in (("sd_of_mean_reward", "sd(w.mu_t)"), ("cell_sd", "per-cell sd")):
-        ratio = spreads[lava][key] / max(spreads[name][key] for name in safe)
-        print(f"lava / largest safe {label}: {ratio:.1f}x")
-
-    rewards = result.samples @ instance.observation_model.means.T
-    cell = np.std(np.einsum("kd,hwd->khw", result.samples, instance.test_features, optimize=True), axis=0)
-    terrains = observed_terrains(instance)
-    names = [TERRAIN_NAMES[t] for t in terrains]
-    colours = ["#b08850", "#4c9a2a", "#2a6fdb", "#d8431c"]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
-    box = axes[0].boxplot([rewards[:, t] for t in terrains], tick_labels=names, patch_artist=True, showfliers=False)
-    axes[0].axhline(0.0, color="0.6", lw=0.8)
-    axes[0].set_ylabel(r"posterior reward $w_i \cdot \mu_{terrain}$")
-    axes[0].set_title("Reward of each terrain's mean observation")
-    groups = [cell[instance.test_labels == t] for t in terrains]
-    box2 = axes[1].boxplot([g if g.size else [np.nan] for g in groups], tick_labels=names, patch_artist=True)
-    axes[1].set_ylabel(r"sd over draws of $w_i \cdot F[cell]$")
-    axes[1].set_title("Per-cell reward spread, test map")
-    for b in (box, box2):
-        for patch, colour in zip(b["boxes"], colours):
-            patch.set_facecolor(colour)
-            patch.set_alpha(0.7)
-    fig.suptitle(f"IRD posterior (MaxEnt-Z, beta={args.beta:g}, {result.num_samples} samples), latent_raw "
-                 f"seed {args.seed}: lava is uncertain")
-    fig.tight_layout()
-    out = Path(args.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    print(f"wrote {out}")
-    return 0
-
+from ird_core.experiments.posterior_terrain import main  # noqa: E402
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

@@ -1,30 +1,19 @@
-"""The designer-in-the-loop experiment (ird_core.experiments.active, scripts/run_active.py) on tiny maps:
+"""The designer-in-the-loop experiment (ird_core.experiments.active, its command line active_cli) on tiny maps:
 outputs and columns, paired determinism, the oracle as a ceiling, the paired statistics."""
 
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 
 from ird_core import experiments
-from ird_core.experiments import active
-
-ROOT = Path(__file__).resolve().parents[1]
+from ird_core.experiments import active, active_cli
 
 TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4, warm_warmup=5)
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
              "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--warm-warmup", "5"]
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("run_active", ROOT / "scripts" / "run_active.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _key(results):
@@ -100,7 +89,7 @@ def test_spec_errors() -> None:
 
 @pytest.mark.timeout(600)
 def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_trials) -> None:
-    mod = _script()
+    mod = active_cli
     out = tmp_path / "active"
     code = mod.main(["--trials", "2", "--workers", "2", "--out", str(out), "--conditions", "pot_of_gold", *TINY_ARGS])
     assert code == 0

@@ -1,4 +1,4 @@
-"""scripts/analyze_bag.py and ird_ros.bags.analysis on a bag written here with rosbags (no ROS).
+"""ird_ros.apps.analyze_bag (scripts/analyze_bag.py) and ird_ros.bags.analysis on a bag written here with rosbags (no ROS).
 
 The bag holds the project's own types (ird_msgs from msgs_config, nav_msgs) as the recorder
 would write them: ground-truth terrain, a posterior, and three missions (/plan, /odom,
@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +17,11 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys.base import Nodetype
 
-from ird_ros.bags import analysis as bag_reader
-from ird_ros.bags.analysis import analyze, extract_missions, make_typestore, read_messages, summarize
+from ird_ros.apps import analyze_bag as analyze_bag_app
+from ird_ros.bags.analysis import analyze, extract_missions
+from ird_ros.bags.missions import terrain_from_msg
+from ird_ros.bags.storage import make_typestore, read_messages, summarize
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "scripts" / "analyze_bag.py"
 
 T0 = 1_700_000_000_000_000_000  # ns
 SEC = 1_000_000_000
@@ -202,7 +200,7 @@ def test_summary_counts_times_and_rates(bag: tuple[Path, dict[str, Any]]) -> Non
 def test_messages_decode_to_the_values_written(bag: tuple[Path, dict[str, Any]]) -> None:
     path, exp = bag
     msgs = read_messages(path, ["/world/terrain", "/ird/posterior", "/world/train_features"])
-    terrain = bag_reader.terrain_from_msg(msgs["/world/terrain"][0].msg)
+    terrain = terrain_from_msg(msgs["/world/terrain"][0].msg)
     np.testing.assert_array_equal(terrain.classes, exp["classes"])
     assert terrain.class_names == tuple(CLASS_NAMES)
     assert terrain.cell_of(*centre(1, 2)) == (1, 2)
@@ -269,13 +267,14 @@ def test_analyze_writes_plots_and_label_statistics(bag: tuple[Path, dict[str, An
     json.dumps(report)  # JSON-able
 
 
-def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tmp_path: Path) -> None:
+def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
     path, exp = bag
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, str(SCRIPT), str(path), "--out", str(out), "--json", str(tmp_path / "r.json")],
-                          capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    lines = proc.stdout.splitlines()
+    code = analyze_bag_app.main([str(path), "--out", str(out), "--json", str(tmp_path / "r.json")])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    lines = captured.out.splitlines()
     status_line = next(line for line in lines if line.startswith("/rob/status"))
     assert status_line.split()[1:3] == ["ird_msgs/msg/RobStatus", "15"]
     assert any("ird_per_step" in line and "True" in line for line in lines)
@@ -284,10 +283,8 @@ def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tm
     assert (out / "trajectories_0.png").is_file() and (out / "true_return.png").is_file()
 
 
-def test_cli_rejects_an_unfinished_bag(tmp_path: Path) -> None:
+def test_cli_rejects_an_unfinished_bag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "broken.mcap").write_bytes(b"\x89MCAP0\r\n")  # what a SIGKILLed writer leaves
-    proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / "broken")], capture_output=True, text=True,
-                          timeout=60)
-    assert proc.returncode == 1
-    assert "metadata.yaml" in proc.stderr
+    assert analyze_bag_app.main([str(tmp_path / "broken")]) == 1
+    assert "metadata.yaml" in capsys.readouterr().err

@@ -8,6 +8,7 @@ A subprocess gets a PYTHONPATH whose first entry holds poisoned ``rclpy``, ``ird
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import subprocess
@@ -75,3 +76,65 @@ def test_poison_really_blocks_rclpy(tmp_path: Path) -> None:
     )
     assert result.returncode != 0
     assert "poisoned" in result.stderr
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imported(tree: ast.AST, name: str, is_package: bool, modules: set[str]) -> set[str]:
+    """Modules ``tree`` imports anywhere (functions too; not under ``if TYPE_CHECKING``)."""
+    found: set[str] = set()
+
+    def visit(node: ast.AST) -> None:
+        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
+            for child in node.orelse:
+                visit(child)
+            return
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                package = name.split(".") if is_package else name.split(".")[:-1]
+                base = ".".join(package[: len(package) - node.level + 1] + ([base] if base else []))
+            for alias in node.names:
+                full = f"{base}.{alias.name}"
+                found.add(full if full in modules else base)
+        for child in ast.iter_child_nodes(node):
+            visit(child)
+
+    visit(tree)
+    return found
+
+
+def _import_graph(packages: tuple[str, ...]) -> dict[str, set[str]]:
+    """Module -> the project modules its imports run: the module itself and every package
+    ``__init__`` above it, except the importer's own packages."""
+    files = {_module_name(p): p for pkg in packages for p in (ROOT / pkg).rglob("*.py") if "__pycache__" not in p.parts}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        own = {".".join(name.split(".")[:i]) for i in range(1, name.count(".") + 2)}
+        edges: set[str] = set()
+        for target in _imported(ast.parse(path.read_text()), name, path.name == "__init__.py", set(files)):
+            parts = target.split(".")
+            edges.update(anc for anc in (".".join(parts[:i]) for i in range(1, len(parts) + 1))
+                         if anc in files and anc not in own)
+        graph[name] = edges
+    return graph
+
+
+def test_no_import_cycles() -> None:
+    """No module of ird_core or ird_ros imports, directly or through others (imports inside
+    functions included), a module that imports it back."""
+    graph = _import_graph(("ird_core", "ird_ros"))
+    for start in graph:
+        seen: set[str] = set()
+        todo = list(graph[start])
+        while todo:
+            module = todo.pop()
+            assert module != start, f"{start} is in an import cycle"
+            if module not in seen:
+                seen.add(module)
+                todo.extend(graph[module])

@@ -1,32 +1,18 @@
-"""The demo's query-round helpers (scripts/_demo_rounds.py, no ROS): terrain counts of option
+"""The demo's query-round helpers (ird_ros.apps.demo_rounds, no ROS): terrain counts of option
 paths against a brute-force count and lavaland's path predicates, the table's rows, and the
 picture's size and layout (one column per stage)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 from ird_core.worlds.terrain import NUM_TERRAINS, Terrain
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _load():
-    spec = importlib.util.spec_from_file_location("_demo_rounds", ROOT / "scripts" / "_demo_rounds.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("_demo_rounds", module)
-    spec.loader.exec_module(module)
-    return module
-
-
-dr = _load()
+from ird_ros.apps import demo_rounds as dr
 
 
 def _random_paths(rng: np.random.Generator, q: int, length: int, h: int, w: int) -> list[np.ndarray]:
@@ -49,11 +35,11 @@ def test_terrain_counts_match_brute_force_and_lavaland() -> None:
             brute = [sum(1 for r, c in cells if labels[r, c] == t) for t in range(NUM_TERRAINS)]
             assert counts[k].tolist() == brute
             assert counts[k].sum() == len(cells)  # revisits count, like true_return
-            assert (counts[k, Terrain.LAVA] > 0) == lavaland.touches_lava(labels, cells)
-            assert (counts[k, Terrain.GOLD] > 0) == lavaland.reaches_gold(labels, cells)
-            assert (counts[k, Terrain.TARGET] > 0) == lavaland.reaches_target(labels, cells)
+            assert (counts[k, Terrain.LAVA] > 0) == evaluation.touches_lava(labels, cells)
+            assert (counts[k, Terrain.GOLD] > 0) == evaluation.reaches_gold(labels, cells)
+            assert (counts[k, Terrain.TARGET] > 0) == evaluation.reaches_target(labels, cells)
             reward = np.asarray(lavaland.TRUE_TERRAIN_REWARD)
-            assert counts[k] @ reward == pytest.approx(lavaland.true_return(labels, cells))
+            assert counts[k] @ reward == pytest.approx(evaluation.true_return(labels, cells))
 
 
 @pytest.mark.parametrize("cells", [[[[0, 0], [3, 0]], [[0, 0], [0, 0]]], [[[0, -1]], [[0, 0]]],

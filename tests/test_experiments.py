@@ -1,16 +1,17 @@
-"""Fast tests of ird_core.experiments and scripts/run_experiments.py (tiny maps, few samples)."""
+"""Fast tests of ird_core.experiments and its command line (ird_core.experiments.cli, ird_ros.apps.experiments;
+tiny maps, few samples)."""
 
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ird_core.experiments import trials as ex
+from ird_core import experiments as ex
+from ird_core.experiments import cli, trials
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,13 +21,6 @@ TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=1
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
              "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--num-proxy-samples", "20",
              "--factorial-samples", "16", "--traj-work-limit", "2000000"]
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("run_experiments", ROOT / "scripts" / "run_experiments.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _key(results):
@@ -88,7 +82,7 @@ def test_run_trial_deterministic_and_complete():
 
 @pytest.mark.timeout(300)
 def test_one_vs_two_workers_identical():
-    mod = _script()
+    mod = cli
     specs = ex.make_specs(["side_effects", "latent_classifier"], 2, 7, **TINY)
     one = mod.run_local(specs, 1)
     two = mod.run_local(specs, 2)
@@ -97,7 +91,7 @@ def test_one_vs_two_workers_identical():
 
 @pytest.mark.timeout(300)
 def test_results_csv_columns_and_rows(tmp_path, capsys):
-    mod = _script()
+    mod = cli
     out = tmp_path / "exp"
     code = mod.main(["--trials", "2", "--workers", "1", "--out", str(out), "--conditions", "side_effects",
                      "reward_hacking", *TINY_ARGS])
@@ -132,7 +126,7 @@ def test_results_csv_columns_and_rows(tmp_path, capsys):
 @pytest.mark.timeout(300)
 def test_dask_local_cluster_matches_local_pool():
     import distributed  # pinned in requirements.txt: a missing package fails, never skips
-    mod = _script()
+    mod = cli
     specs = ex.make_specs(["reward_hacking"], 2, 11, **TINY)
     local = mod.run_local(specs, 1)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
@@ -229,16 +223,17 @@ def test_factorial_granularities_share_the_first_samples():
     so the trajectory optimum is at least the per-step optimum and at least the per-step path's
     trajectory objective; each plan's objective is its objective on exactly those samples."""
     from ird_core import planning
+    from ird_core import posterior
     from ird_core.worlds import lavaland
 
     spec = ex.TrialSpec("latent_raw", 2, **SMALL_MAP)
     inst = ex.trial_instance(spec)
     test = lavaland.test_mdp(inst)
-    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     by = {r.planner: r for r in ex.run_trial(spec)}
     for z in spec.z_methods:
-        samples = ex._posterior(spec, inst, z).samples[: spec.factorial_samples]
-        assert by[f"ird_{z}"].cells == planning.plan_path(test, ex._posterior(spec, inst, z).samples, "per_step",
+        samples = trials._posterior(spec, inst, z).samples[: spec.factorial_samples]
+        assert by[f"ird_{z}"].cells == planning.plan_path(test, trials._posterior(spec, inst, z).samples, "per_step",
                                                           ex.MAIN_BASELINE, reference).cells
         for base in ex.BASELINES:
             step, traj = by[f"{z}/per_step/{base}"], by[f"{z}/trajectory/{base}"]
@@ -265,7 +260,7 @@ def test_factorial_samples_must_fit_the_posterior():
 
 
 def test_defaults_are_paper_scale_and_quick_is_the_small_setting():
-    mod = _script()
+    mod = cli
     d = ex.TrialSpec("side_effects", 0)
     assert (d.size, d.horizon, d.obs_dim, d.z_methods, d.factorial) == (15, 30, 50, ex.Z_METHODS, True)
 
@@ -285,7 +280,7 @@ def test_defaults_are_paper_scale_and_quick_is_the_small_setting():
 
 
 def test_per_method_sampler_settings():
-    mod = _script()
+    mod = cli
     args = mod.build_parser().parse_args(["--quick", "--z-sampler", "sample_z", "num_chains=8", "warmup=200"])
     mod.resolve_spec_flags(args)
     spec = ex.TrialSpec("side_effects", 0, **mod.spec_settings(args))
@@ -295,7 +290,7 @@ def test_per_method_sampler_settings():
     # the trial's posterior of each method runs with that method's settings
     own = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(3, 12, 2, 4)))
     inst = ex.trial_instance(own)
-    sz, mz = ex._posterior(own, inst, "sample_z"), ex._posterior(own, inst, "maxent_z")
+    sz, mz = trials._posterior(own, inst, "sample_z"), trials._posterior(own, inst, "maxent_z")
     assert (sz.num_chains, sz.warmup, mz.num_chains, mz.warmup) == (3, 12, TINY["num_chains"], TINY["warmup"])
     long = mod.build_parser().parse_args(["--z-sampler", "sample_z", "warmup_max_leapfrog=64", "trajectory_length=3"])
     mod.resolve_spec_flags(long)
@@ -333,7 +328,7 @@ def test_dask_scheduler_and_worker_processes_match_local_pool(tmp_path):
 
     import distributed
 
-    mod = _script()
+    mod = cli
     specs = ex.make_specs(["side_effects"], 2, 5, **TINY)
     local = mod.run_local(specs, 1)
     with socket.socket() as s:  # a free port; the scheduler binds it right away
@@ -375,7 +370,7 @@ def test_sampler_settings_follow_the_weight_space_dimension():
     for small_dim, kernel, chains in ((4, "elliptical", 3), (3, "hmc", 2)):  # side_effects: d = 4
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(
             2, 10, 1, 4, small_dim=small_dim, small=small)))
-        post = ex._posterior(spec, ex.trial_instance(spec), "sample_z")
+        post = trials._posterior(spec, ex.trial_instance(spec), "sample_z")
         assert (post.kernel, post.num_chains) == (kernel, chains)
     # the paper-scale defaults: Sample-Z's small weight spaces independence + slice, 50-d HMC; MaxEnt-Z HMC
     default = ex.TrialSpec("side_effects", 0)
@@ -390,14 +385,26 @@ def test_trajectory_settings_reach_the_sampler(monkeypatch):
         seen.append(kwargs)
         raise RuntimeError("captured")
 
-    monkeypatch.setattr(ex.posterior, "sample_joint_posterior", capture)
+    monkeypatch.setattr(trials.posterior, "sample_joint_posterior", capture)
     for settings, want in ((ex.SamplerSettings(4, 10, 1, 8), (None, None)),
                            (ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=64, trajectory_length=3.0), (64, 3.0))):
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=settings))
         with pytest.raises(RuntimeError, match="captured"):
-            ex._posterior(spec, ex.trial_instance(spec), "sample_z")
+            trials._posterior(spec, ex.trial_instance(spec), "sample_z")
         assert (seen[-1]["warmup_max_leapfrog"], seen[-1]["trajectory_length"]) == want
     with pytest.raises(ValueError, match="trajectory_length"):
         ex.SamplerSettings(4, 10, 1, 8, trajectory_length=float("inf"))
     with pytest.raises(ValueError, match="warmup_max_leapfrog"):
         ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=-1)
+
+
+def test_ros_entry_point_is_the_core_command_line_plus_via_ros(tmp_path, capsys):
+    """ird_ros.apps.experiments parses the core flags plus --via-ros and refuses --world with it."""
+    from ird_ros.apps import experiments as app
+
+    args = app.build_parser().parse_args(["--via-ros", "--quick"])
+    assert args.via_ros and args.quick and args.trials is None
+    assert "--via-ros" in app.build_parser().format_help() and "--via-ros" not in cli.build_parser().format_help()
+    world = str(ROOT / "worlds" / "figure1.yaml")
+    assert app.main(["--via-ros", "--world", world, "--out", str(tmp_path)]) == 2
+    assert "--world: not supported with --via-ros" in capsys.readouterr().err

@@ -1,9 +1,8 @@
-"""Experiments on a world file: ``run_experiments.py --world FILE`` and ``TrialSpec.world``."""
+"""Experiments on a world file: ``ird-experiments --world FILE`` (ird_core.experiments.cli) and ``TrialSpec.world``."""
 
 from __future__ import annotations
 
 import csv
-import importlib.util
 import warnings
 from pathlib import Path
 
@@ -12,18 +11,12 @@ import pytest
 
 from ird_core import experiments as ex
 from ird_core import posterior
-from ird_core.worlds import lavaland, world_file
+from ird_core.experiments import cli
+from ird_core.worlds import evaluation, lavaland, world_file
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = dict(num_samples=16, num_chains=2, warmup=20, thin=1, max_leapfrog=8, num_proxy_samples=20,
              z_methods=("maxent_z",), factorial=False, sample_z_sampler=None, maxent_z_sampler=None)
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("run_experiments", ROOT / "scripts" / "run_experiments.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_run_experiments_world_figure1(tmp_path: Path) -> None:
@@ -32,7 +25,7 @@ def test_run_experiments_world_figure1(tmp_path: Path) -> None:
     args = ["--world", str(ROOT / "worlds" / "figure1.yaml"), "--trials", "2", "--workers", "1", "--out",
             str(tmp_path), "--no-factorial", "--z-methods", "maxent_z", "--num-samples", "16", "--num-chains", "2",
             "--warmup", "20", "--thin", "1"]
-    assert _script().main(args) == 0
+    assert cli.main(args) == 0
     with (tmp_path / "trials.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert {r["condition"] for r in rows} == {lavaland.FILE_CONDITION}
@@ -44,14 +37,14 @@ def test_run_experiments_world_figure1(tmp_path: Path) -> None:
     assert all(r["touched_lava"] == "0" for r in rows if r["planner"] != "literal")
     inst = world_file.load_world(ROOT / "worlds" / "figure1.yaml")
     cells = [tuple(int(v) for v in c.split(",")) for c in literal[0]["cells"].split()]
-    expected = lavaland.true_return(inst.test_labels, cells, inst.true_terrain_reward)
+    expected = evaluation.true_return(inst.test_labels, cells, inst.true_terrain_reward)
     assert float(literal[0]["true_return"]) == pytest.approx(expected, rel=1e-5)  # the csv keeps 6 digits
 
 
 def test_bad_world_file_exits_2_naming_the_key(tmp_path: Path, capsys) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("terrains: [{name: dirt, colour: [1, 2, 3]}]\n")
-    assert _script().main(["--world", str(bad), "--trials", "1", "--out", str(tmp_path / "out")]) == 2
+    assert cli.main(["--world", str(bad), "--trials", "1", "--out", str(tmp_path / "out")]) == 2
     assert f"{bad}: training_worlds: missing required key" in capsys.readouterr().err
 
 
@@ -68,10 +61,10 @@ def test_trial_posterior_is_the_joint_posterior_of_every_training_world() -> Non
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         joint = posterior.sample_joint_posterior(
-            lavaland.proxy_observations(inst), spec.beta, "maxent_z", spec.num_samples, seed, spec.prior_sigma,
+            posterior.proxy_observations(inst), spec.beta, "maxent_z", spec.num_samples, seed, spec.prior_sigma,
             num_chains=2, warmup=20, thin=1, max_leapfrog=8)
     assert ird.r_hat_max == joint.r_hat_max
-    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     from ird_core import planning
 
     expected = planning.plan_path(lavaland.test_mdp(inst), joint.samples, "per_step", "training_features", reference)

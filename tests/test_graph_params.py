@@ -1,5 +1,6 @@
-"""msgs_config/params/graph.yaml: one section per node, every parameter commented, and every
-parameter one the node declares, with its type and (unless a listed override) its default."""
+"""msgs_config/params/graph.yaml: one section per node plus the launcher's, every parameter
+commented, and every parameter one the node declares, with its type and (unless a listed
+override) its default; the launcher's section repeats ``ird_ros.launch.LAUNCHER_DEFAULTS``."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from ird_ros.launch import LAUNCHER_DEFAULTS, LAUNCHER_SECTION, plan_launch
 
 GRAPH = Path(__file__).resolve().parents[1] / "msgs_config" / "params" / "graph.yaml"
 NODES = {"world", "perception", "inference", "planner", "rob", "designer", "recorder"}
@@ -59,8 +62,11 @@ def test_graph_yaml_sets_declared_parameters_with_their_types_and_defaults() -> 
     from ird_ros.runtime.node_params import Param
 
     data = yaml.safe_load(GRAPH.read_text())
+    assert set(data) == NODES | {LAUNCHER_SECTION}
     tables = _parameter_tables()
     for node, section in data.items():
+        if node == LAUNCHER_SECTION:
+            continue  # not a node: test_launcher_section_repeats_the_launcher_defaults
         table = tables[node]
         assert table and all(isinstance(p, Param) for p in table.values()), node
         for key, value in section["ros__parameters"].items():
@@ -91,3 +97,17 @@ def test_parameter_defaults_are_valid() -> None:
                 assert p.default <= p.max_value, (node, key)
             if p.choices is not None:
                 assert p.default in p.choices, (node, key)
+
+
+def test_launcher_section_repeats_the_launcher_defaults() -> None:
+    """Every launcher setting is in the file with its default's type and value, and a plan
+    built from the file uses them."""
+    section = yaml.safe_load(GRAPH.read_text())[LAUNCHER_SECTION]["ros__parameters"]
+    assert set(section) == set(LAUNCHER_DEFAULTS)
+    for key, default in LAUNCHER_DEFAULTS.items():
+        value = section[key]
+        assert _ros_type(value) is _ros_type(default), (key, value, default)
+        assert (list(value) == list(default)) if isinstance(value, list) else value == default, key
+    plan = plan_launch(params=GRAPH)
+    assert plan.respawned == frozenset(section["respawn"])
+    assert (plan.respawn_delay, plan.respawn_max_retries) == (section["respawn_delay"], section["respawn_max_retries"])

@@ -1,4 +1,4 @@
-"""ird_ros.jobs.inference_queries.Evidence (no ROS): when the inference node forgets a world, and how
+"""ird_ros.jobs.inference_queries.WorldEvidence (no ROS): when the inference node forgets a world, and how
 answers are checked before anything changes."""
 
 from __future__ import annotations
@@ -8,7 +8,8 @@ from types import SimpleNamespace as NS
 import numpy as np
 import pytest
 
-from ird_ros.jobs.inference_queries import Evidence, resample_seed
+from ird_core.vocabulary import QueryStrategy
+from ird_ros.jobs.inference_queries import ProposalRecord, WorldEvidence, resample_seed
 
 OLD, NEW = (10, 0), (20, 0)
 
@@ -17,8 +18,12 @@ def _query(q: int = 2) -> NS:
     return NS(num_options=q, option_features=np.arange(q * 3, dtype=float).reshape(q, 3))
 
 
-def _evidence(world: tuple[int, int]) -> Evidence:
-    ev = Evidence()
+def _record(q: int = 2) -> ProposalRecord:
+    return ProposalRecord(QueryStrategy.INFO_GAIN, (), ("a", "b", "c"), np.zeros((q, 3)), 0.0)
+
+
+def _evidence(world: tuple[int, int]) -> WorldEvidence:
+    ev = WorldEvidence()
     ev.on_proxy(OLD)
     ev.reset(job=NS(seed=1), posterior=NS(samples=np.zeros((4, 3))), feature_names=("a", "b", "c"), world_stamp=world)
     return ev
@@ -26,7 +31,7 @@ def _evidence(world: tuple[int, int]) -> Evidence:
 
 def test_a_new_world_forgets_the_evidence_and_its_queries() -> None:
     ev = _evidence(OLD)
-    qid = ev.add_query(_query(), {})
+    qid = ev.add_query(_query(), _record())
     epoch = ev.epoch
     assert not ev.on_proxy(OLD)  # the same world again (a late latched copy): kept
     assert ev.on_proxy(NEW) and ev.job is None and ev.posterior is None and ev.epoch > epoch
@@ -42,14 +47,14 @@ def test_evidence_on_the_new_worlds_map_survives_its_late_proxy() -> None:
 
 def test_reset_starts_new_evidence_and_ids_stay_unique() -> None:
     ev = _evidence(OLD)
-    first = ev.add_query(_query(), {})
+    first = ev.add_query(_query(), _record())
     open_query, beta = ev.check_answer(first, 1, 0.0, 2.5)
     assert beta == 2.5  # 0 = the node's default
     ev.commit(open_query, ev.choice(open_query, 1, beta), NS(samples=np.ones((4, 3))))
     assert len(ev.answers) == 1
     ev.reset(job=NS(seed=2), posterior=NS(samples=np.zeros((4, 3))), feature_names=("a", "b", "c"), world_stamp=OLD)
     assert ev.answers == [] and ev.queries == {}
-    assert ev.add_query(_query(), {}) == first + 1
+    assert ev.add_query(_query(), _record()) == first + 1
 
 
 @pytest.mark.parametrize("query_id, chosen, beta, message", [
@@ -58,10 +63,12 @@ def test_reset_starts_new_evidence_and_ids_stay_unique() -> None:
     (1, -1, 0.0, "^chosen: -1 is out of range"),
     (1, 0, -0.5, "^beta: must be finite and >= 0"),
     (1, 0, float("inf"), "^beta: must be finite and >= 0"),
+    (1, 0, 1001.0, r"^beta: 1001 is outside the allowed range \[0, 1000\]"),
+    (1, 0, 1e308, r"^beta: 1e\+308 is outside the allowed range"),
 ])
 def test_bad_answers_name_the_field_and_change_nothing(query_id: int, chosen: int, beta: float, message: str) -> None:
     ev = _evidence(OLD)
-    assert ev.add_query(_query(), {}) == 1
+    assert ev.add_query(_query(), _record()) == 1
     with pytest.raises(ValueError, match=message):
         ev.check_answer(query_id, chosen, beta, 1.0)
     assert ev.answers == [] and not ev.queries[1].answered
@@ -69,7 +76,7 @@ def test_bad_answers_name_the_field_and_change_nothing(query_id: int, chosen: in
 
 def test_an_answered_query_cannot_be_answered_again() -> None:
     ev = _evidence(OLD)
-    qid = ev.add_query(_query(3), {})
+    qid = ev.add_query(_query(3), _record(3))
     open_query, beta = ev.check_answer(qid, 2, 4.0, 1.0)
     choice = ev.choice(open_query, 2, beta)
     assert (choice.chosen, choice.beta) == (2, 4.0) and np.array_equal(choice.option_features, _query(3).option_features)

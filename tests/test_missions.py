@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ird_ros.bags import missions as M
-from ird_ros.conversions.geometry import cell_center, grid_coordinates, point_cells
+from ird_ros.geometry import cell_center, grid_coordinates, point_cells
 from ird_ros.graph import names
 
 SEC = 1_000_000_000
@@ -229,7 +229,7 @@ def test_terrain_decodes_classes_row_major_and_rejects_a_short_array() -> None:
 
 
 def test_missions_import_neither_ros_nor_rosbags() -> None:
-    code = ("import sys, ird_ros.bags.missions, ird_ros.conversions.geometry; "
+    code = ("import sys, ird_ros.bags.missions, ird_ros.geometry; "
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosbags', 'ird_msgs')); "
             "assert not bad, bad")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES
 from ird_ros.bags import rounds as qr
 
@@ -59,7 +59,7 @@ def test_bad_records_name_the_field(kw: dict[str, Any], field: str) -> None:
         qr.event_from_msg(record(1, **kw), resolution=RES, origin=ORIGIN)
 
 
-def _events(*records: Any) -> list[qr.QueryEvent]:
+def _events(*records: Any) -> list[qr.QueryRecordData]:
     return [qr.event_from_msg(r, resolution=RES, origin=ORIGIN) for r in records]
 
 
@@ -95,7 +95,7 @@ def test_option_returns_equal_lavaland_true_return_in_any_class_order() -> None:
     rng = np.random.default_rng(0)
     labels = rng.integers(0, len(TERRAIN_NAMES), size=(6, 7))
     options = [np.column_stack([rng.integers(0, 6, 9), rng.integers(0, 7, 9)]) for _ in range(5)]
-    expected = [lavaland.true_return(labels, o) for o in options]
+    expected = [evaluation.true_return(labels, o) for o in options]
     rewards = lavaland.TRUE_TERRAIN_REWARD[: len(TERRAIN_NAMES)]
     got = qr.option_returns(labels, TERRAIN_NAMES, TERRAIN_NAMES, rewards, options)
     assert np.allclose(got, expected)

@@ -1,9 +1,8 @@
-"""Progress reporting: ird_core's ``progress(step, total)`` callback drives the scripts' tqdm bar
-(scripts/_progress.py), and the core itself never loads tqdm or ArviZ."""
+"""Progress reporting: ird_core's ``progress(step, total)`` callback drives the command lines' tqdm bar
+(ird_core.experiments.progress), and importing the core never loads tqdm or ArviZ."""
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import json
 import subprocess
@@ -17,10 +16,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def progress_module():
-    spec = importlib.util.spec_from_file_location("_progress", ROOT / "scripts" / "_progress.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    from ird_core.experiments import progress
+
+    return progress
 
 
 def test_off_a_terminal_every_refresh_is_one_line(progress_module, monkeypatch: pytest.MonkeyPatch) -> None:

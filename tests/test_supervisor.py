@@ -2,7 +2,8 @@
 
 Properties: the stop escalation sends SIGINT, SIGTERM, SIGKILL in that order and on schedule
 to a child that ignores the first two; a crashed child is restarted after ``respawn_delay``
-and readiness only counts for the current process; exit events carry the exit code or signal;
+and readiness only counts for the current process; a child that keeps dying is started
+``1 + respawn_max_retries`` times, then given up; exit events carry the exit code or signal;
 PR_SET_PDEATHSIG ends a child when its supervising process is SIGKILLed; the output pump
 keeps every line. Nothing sleeps: waits are on supervisor events, output lines and pidfds.
 """
@@ -21,10 +22,11 @@ from typing import Iterator
 
 import pytest
 
-from ird_ros.launch.supervisor import (
+from ird_ros.launch import (
     ChildState,
     EventKind,
     ProcessExited,
+    ProcessGaveUp,
     ProcessReady,
     ProcessRespawning,
     ProcessSpec,
@@ -133,6 +135,25 @@ def test_respawn_after_a_crash_waits_respawn_delay(make, tmp_path: Path) -> None
     sup.wait_for_output("phoenix", "second life")
 
 
+@pytest.mark.parametrize("max_retries", [0, 3])
+def test_a_child_that_keeps_dying_is_given_up_after_respawn_max_retries(make, max_retries: int) -> None:
+    sup = make(ProcessSpec("doomed", py("import sys; sys.exit(2)"), respawn=True, respawn_delay=0.0,
+                           respawn_max_retries=max_retries))
+    gave_up = sup.wait_for_event("gave_up", "doomed", timeout=60)
+    # the give-up is recorded with the last death: no start can follow it
+    events = sup.events()
+    assert [e.kind for e in events if isinstance(e, ProcessStarted)] == ["started"] * (1 + max_retries)
+    died = [e for e in events if isinstance(e, ProcessExited)]
+    assert len(died) == 1 + max_retries and all(e.returncode == 2 and not e.requested for e in died)
+    assert [e.will_respawn for e in died] == [True] * max_retries + [False]
+    assert len([e for e in events if isinstance(e, ProcessRespawning)]) == max_retries
+    assert isinstance(gave_up, ProcessGaveUp) and gave_up.restarts == max_retries
+    assert gave_up.index == died[-1].index + 1 and gave_up.kind is EventKind.GAVE_UP
+    assert gave_up.detail == f"gave up after {max_retries} restart(s)"
+    info = sup.info("doomed")
+    assert info.state is ChildState.EXITED and info.restarts == max_retries and info.returncode == 2
+
+
 def test_no_respawn_after_stop(make) -> None:
     sup = make(ProcessSpec("sleeper", py("import signal; print('up', flush=True); signal.pause()"),
                            respawn=True, respawn_delay=0.0))
@@ -209,7 +230,7 @@ def test_a_death_is_reported_after_the_last_words(make) -> None:
 
 PARENT = """
 import json, signal, sys
-from ird_ros.launch.supervisor import ProcessSpec, Supervisor
+from ird_ros.launch import ProcessSpec, Supervisor
 sup = Supervisor([ProcessSpec("orphan", (sys.executable, "-c", "import signal; signal.pause()"))])
 sup.start()
 print(json.dumps({"child": sup.info("orphan").pid}), flush=True)
@@ -252,6 +273,8 @@ def test_pdeathsig_ends_the_child_when_the_supervisor_is_killed() -> None:
 def test_bad_arguments_name_the_field() -> None:
     with pytest.raises(ValueError, match="respawn_delay"):
         ProcessSpec("x", py("pass"), respawn=True, respawn_delay=-1.0)
+    with pytest.raises(ValueError, match="respawn_max_retries"):
+        ProcessSpec("x", py("pass"), respawn=True, respawn_max_retries=-2)
     with pytest.raises(ValueError, match="argv"):
         ProcessSpec("x", ())
     with pytest.raises(ValueError, match="output"):
@@ -263,7 +286,8 @@ def test_bad_arguments_name_the_field() -> None:
 
 
 def test_supervisor_imports_no_ros() -> None:
-    probe = ("import json, sys, ird_ros.launch.supervisor, ird_ros.graph.domains, ird_ros.client.waits; "
+    probe = ("import json, sys, ird_ros.launch.supervisor, ird_ros.launch.plan, ird_ros.graph.domains, "
+             "ird_ros.client.waits; "
              "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'ird_msgs'))))")
     out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                          capture_output=True, text=True, check=True, timeout=60)

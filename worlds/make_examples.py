@@ -15,8 +15,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from ird_core.render import TERRAIN_COLORS  # noqa: E402
-from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain  # noqa: E402
+from ird_core.worlds.terrain import TERRAIN_COLORS, TERRAIN_NAMES, Terrain  # noqa: E402
 from ird_core.worlds.world_file import write_image  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

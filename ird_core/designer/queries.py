@@ -32,7 +32,7 @@ Query proposal (``propose_query``):
 
 Simulated designer (``simulated_answer``, ``SimulatedDesigner``): Boltzmann on the TRUE return of
 each option with its own ``beta``, seeded. It takes the returns as an array, so this module knows
-nothing of Lavaland (there ``lavaland.true_return(labels, cells)`` gives them).
+nothing of Lavaland (there ``ird_core.worlds.evaluation.true_return(labels, cells)`` gives them).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from scipy.special import logsumexp
 
 from ird_core.checks import check_array, check_int, check_real
 from ird_core.mdp import MOVES, GridMDP, successor_table
-from ird_core.vocabulary import STRATEGIES
+from ird_core.vocabulary import STRATEGIES, QueryStrategy, parse
 
 __all__ = [
     "STRATEGIES",
@@ -287,8 +287,7 @@ def propose_query(query_mdp: GridMDP, samples: np.ndarray, beta: float, num_opti
     w = check_array("samples", samples, (None, query_mdp.num_features))
     beta = check_real("beta", beta, positive=False)
     num_options = check_int("num_options", num_options, 2)
-    if not isinstance(strategy, str) or strategy not in STRATEGIES:
-        raise ValueError(f"strategy: expected one of {STRATEGIES}, got {strategy!r}")
+    parse(QueryStrategy, strategy, "strategy")
     seed = check_int("seed", seed, 0)
     states, features, _ = candidate_paths(query_mdp, w)
     n = len(states)
@@ -296,7 +295,7 @@ def propose_query(query_mdp: GridMDP, samples: np.ndarray, beta: float, num_opti
         raise NotEnoughCandidates(f"num_options: {num_options} options requested but the {len(w)} samples plan "
                                   f"only {n} distinct path(s) on the query map")
     scores = beta * (features @ w.T)  # (n, K)
-    if strategy == "random":
+    if strategy == QueryStrategy.RANDOM:
         chosen = [int(i) for i in np.random.default_rng(seed).choice(n, num_options, replace=False)]
     else:
         i, j, _ = _best_pair(scores)

@@ -1,6 +1,6 @@
 """The designer in the loop (docs/spec.md section 7): does asking the designer a few questions
-recover what risk-averse IRD gives up? Pure numpy/scipy, no ROS, no parallelism (the script
-``scripts/run_active.py`` maps :func:`run_trial` over seeds).
+recover what risk-averse IRD gives up? Pure numpy/scipy, no ROS, no parallelism (the command
+line, :mod:`ird_core.experiments.active_cli`, maps :func:`run_trial` over seeds).
 
 One trial (:func:`run_trial`) = one seeded Lavaland instance of one condition:
 
@@ -42,14 +42,16 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Sequence
 
 import numpy as np
 
-from ird_core import experiments, mdp, planning, posterior
+from ird_core import mdp, planning, posterior
 from ird_core.designer import queries
+from ird_core.experiments import statistics
+from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
 from ird_core.vocabulary import STRATEGIES
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 
 __all__ = [
     "STRATEGIES",
@@ -72,7 +74,7 @@ DEFAULT_DESIGNER_BETA: float = 1.0
 
 
 # The Lavaland experiments' small settings, shared so that both experiments stay comparable.
-_SMALL = experiments.TrialSpec("side_effects", 0, **experiments.QUICK)
+_SMALL = TrialSpec("side_effects", 0, **QUICK)
 
 
 @dataclass(frozen=True)
@@ -95,8 +97,7 @@ class ActiveSpec:
     thin: int = _SMALL.thin
     max_leapfrog: int = _SMALL.max_leapfrog
     # Warm-up of each re-sample after an answer; None: the library's ``DEFAULT_WARM_WARMUP`` (50
-    # for MaxEnt-Z). Measured on the latent conditions (seeds 0-4, 80 re-samples): 25 left 14% of
-    # them above split R-hat 1.1 (50: 4%) for 29% less CPU.
+    # for MaxEnt-Z; shorter warm-ups leave more re-samples unconverged, docs/benchmarks.md).
     warm_warmup: "int | None" = None
     query_counts: tuple[int, ...] = QUERY_COUNTS
     strategies: tuple[str, ...] = STRATEGIES
@@ -155,19 +156,20 @@ class ActiveResult:
 
 def make_specs(conditions: Iterable[str], trials: int, seed: int = 0, **settings) -> list[ActiveSpec]:
     """``trials`` specs per condition (instance seeds ``seed + i``, paired across conditions)."""
-    return [ActiveSpec(c, experiments.trial_seed(seed, i), **settings) for c in conditions for i in range(trials)]
+    return [ActiveSpec(c, trial_seed(seed, i), **settings) for c in conditions for i in range(trials)]
 
 
 def _seed(seed: int, *keys: int) -> int:
     return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0] % (2**31))
 
 
-def _result(inst: lavaland.LavalandInstance, strategy: str, num_queries: int, cells, *, asked: int = 0,
+def _result(inst: lavaland.LavalandInstance, strategy: str, num_queries: int, cells: Sequence[tuple[int, int]], *,
+            asked: int = 0,
             gains: "list[float] | None" = None, correct: int = 0, r_hat: float = math.nan) -> ActiveResult:
     labels = inst.test_labels
     return ActiveResult(inst.condition, inst.seed, strategy, num_queries, asked,
-                        lavaland.touches_lava(labels, cells), lavaland.reaches_target(labels, cells),
-                        lavaland.reaches_gold(labels, cells), lavaland.true_return(labels, cells),
+                        evaluation.touches_lava(labels, cells), evaluation.reaches_target(labels, cells),
+                        evaluation.reaches_gold(labels, cells), evaluation.true_return(labels, cells),
                         float(np.mean(gains)) if gains else math.nan, correct, r_hat,
                         tuple((int(r), int(c)) for r, c in cells))
 
@@ -185,7 +187,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     # Sample-Z's proxy counts are computed once, in the proxy's own space (latent_classifier),
     # and shared by every re-sample, like the proxy's own counts.
     num_proxy = posterior.DEFAULT_NUM_PROXY_SAMPLES if spec.method == "sample_z" else None
-    proxy, = lavaland.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
+    proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
     reference = proxy.proxy_features / (inst.train_horizon + 1)
     options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
 
@@ -198,7 +200,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 **options)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
-        return planning.plan_path(test, post.samples, "per_step", experiments.MAIN_BASELINE, reference).cells
+        return planning.plan_path(test, post.samples, "per_step", MAIN_BASELINE, reference).cells
 
     first = sample([proxy], 0, None)
     first_cells = plan(first)
@@ -215,7 +217,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 except queries.NotEnoughCandidates:
                     query = None  # the samples agree on the plan: nothing to ask
                 if query is not None:
-                    returns = np.array([lavaland.true_return(inst.test_labels, c) for c in query.option_cells])
+                    returns = np.array([evaluation.true_return(inst.test_labels, c) for c in query.option_cells])
                     designer = np.random.default_rng(_seed(inst.seed, 3, j))
                     chosen = queries.simulated_answer(returns, spec.designer_beta, designer)
                     correct += bool(returns[chosen] == returns.max())
@@ -246,7 +248,7 @@ RESULT_COLUMNS: tuple[str, ...] = (
 @dataclass(frozen=True)
 class ActiveSummary:
     """One (condition, strategy, num_queries) cell: fractions with 95% Wilson intervals, the
-    mean true return with a 95% Student-t interval (``ird_core.experiments``' helpers)."""
+    mean true return with a 95% Student-t interval (:mod:`ird_core.experiments.statistics`)."""
 
     condition: str
     strategy: str
@@ -273,25 +275,21 @@ class ActiveSummary:
 
 def aggregate(results: Iterable[ActiveResult]) -> list[ActiveSummary]:
     """One summary per (condition, strategy, num_queries), in first-seen order."""
-    groups: dict[tuple[str, str, int], list[ActiveResult]] = {}
-    for r in results:
-        groups.setdefault((r.condition, r.strategy, r.num_queries), []).append(r)
-    out = []
-    for (condition, strategy, count), rs in groups.items():
-        n = len(rs)
-        fractions = []
-        for flag in ("touched_lava", "reached_target", "reached_gold"):
-            k = sum(getattr(r, flag) for r in rs)
-            fractions += [k / n, *experiments.wilson_interval(k, n)]
-        gains = [r.information_gain for r in rs if not math.isnan(r.information_gain)]
-        asked = sum(r.asked for r in rs)
-        rhats = [r.r_hat_max for r in rs if not math.isnan(r.r_hat_max)]
-        out.append(ActiveSummary(
-            condition, strategy, count, n, *fractions, *experiments.t_interval([r.true_return for r in rs]),
-            asked / n, float(np.mean(gains)) if gains else math.nan,
-            sum(r.answers_correct for r in rs) / asked if asked else math.nan,
-            max(rhats) if rhats else math.nan, sum(rh > posterior.R_HAT_CONVERGED for rh in rhats)))
-    return out
+    groups = statistics.group_by(results, lambda r: (r.condition, r.strategy, r.num_queries))
+    return [_summary(key, rs) for key, rs in groups.items()]
+
+
+def _summary(key: tuple[str, str, int], rs: list[ActiveResult]) -> ActiveSummary:
+    condition, strategy, count = key
+    gains = [r.information_gain for r in rs if not math.isnan(r.information_gain)]
+    asked = sum(r.asked for r in rs)
+    return ActiveSummary(
+        condition, strategy, count, len(rs), *statistics.proportion([r.touched_lava for r in rs]),
+        *statistics.proportion([r.reached_target for r in rs]), *statistics.proportion([r.reached_gold for r in rs]),
+        *statistics.t_interval([r.true_return for r in rs]),
+        asked / len(rs), float(np.mean(gains)) if gains else math.nan,
+        sum(r.answers_correct for r in rs) / asked if asked else math.nan,
+        *statistics.convergence(r.r_hat_max for r in rs))
 
 
 def _returns_by_seed(results: Iterable[ActiveResult], condition: str, strategy: str, count: int) -> dict[int, float]:
@@ -303,9 +301,8 @@ def paired_difference(results: "list[ActiveResult]", condition: str, a: tuple[st
                       b: tuple[str, int]) -> tuple[float, float, float, int]:
     """Mean per-trial difference of true return, ``(strategy, count)`` ``a`` minus ``b``, on the
     seeds both have: ``(mean, ci_low, ci_high, n)`` with a 95% Student-t interval."""
-    ra, rb = _returns_by_seed(results, condition, *a), _returns_by_seed(results, condition, *b)
-    seeds = sorted(set(ra) & set(rb))
-    return (*experiments.t_interval([ra[s] - rb[s] for s in seeds]), len(seeds))
+    return statistics.paired_difference(_returns_by_seed(results, condition, *a),
+                                        _returns_by_seed(results, condition, *b))
 
 
 def gap_closed(summaries: "list[ActiveSummary]", condition: str, strategy: str, count: int) -> float:
@@ -317,4 +314,4 @@ def gap_closed(summaries: "list[ActiveSummary]", condition: str, strategy: str, 
         low, high, value = by[condition, "literal", 0], by[condition, "oracle", 0], by[condition, strategy, count]
     except KeyError:
         return math.nan
-    return experiments.gap_share(low, high, value)
+    return statistics.gap_share(low, high, value)

@@ -35,17 +35,15 @@ Lavaland the trial seed is the instance seed).
 A trial is a pure function of its :class:`TrialSpec`, so results do not depend on the number
 of workers or the order in which trials finish.
 
-World files (``TrialSpec.world``, ``scripts/run_experiments.py --world FILE``): the trial runs
+World files (``TrialSpec.world``, ``ird-experiments --world FILE``): the trial runs
 on the file's instance (:func:`ird_core.worlds.world_file.load_world`; its size, horizons and
 observations are the file's) and the posterior is the joint one over every training world of
-the file (``lavaland.proxy_observations``, docs/spec.md section 7). The world is fixed, so the trials of a
+the file (``posterior.proxy_observations``, docs/spec.md section 7). The world is fixed, so the trials of a
 file differ only in the trial seed ``S + i``, which seeds the sampler and the Sample-Z proxies:
 they measure how the outcome varies with the posterior's randomness, not with the map. The true
 return uses the file's true rewards (NaN when the file gives none).
 
-Aggregation (:func:`aggregate`): fractions with 95% Wilson score intervals, mean true return
-with a 95% Student-t interval, and for every IRD planner the share of the literal-to-oracle
-return gap it closes (:func:`gap_closed`) with a 95% paired bootstrap interval over trials.
+Aggregation: :mod:`ird_core.experiments.summaries` (one row per experiment x condition x planner).
 
 Settings: :class:`TrialSpec`'s defaults are the paper's scale (15x15 maps, T = 30, 50-d
 observations); :data:`QUICK` is the small setting for a fast look (8x8, T = 12, 10-d). The
@@ -55,7 +53,6 @@ sampler settings can differ per Z-approximation (:class:`SamplerSettings`,
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 import warnings
@@ -63,11 +60,10 @@ from dataclasses import dataclass
 from typing import Iterable, Sequence
 
 import numpy as np
-from scipy import stats
 
 from ird_core import mcmc, mdp, planning, posterior
 from ird_core.vocabulary import Baseline, PlanMode, ZMethod
-from ird_core.worlds import lavaland, world_file
+from ird_core.worlds import evaluation, lavaland, world_file
 
 __all__ = [
     "Z_METHODS",
@@ -80,17 +76,10 @@ __all__ = [
     "TrialSpec",
     "QUICK",
     "TrialResult",
-    "CellSummary",
     "trial_seed",
     "trial_instance",
     "make_specs",
     "run_trial",
-    "wilson_interval",
-    "t_interval",
-    "gap_share",
-    "gap_closed",
-    "aggregate",
-    "RESULT_COLUMNS",
     "TRIAL_COLUMNS",
 ]
 
@@ -107,9 +96,8 @@ MAIN_BASELINE = Baseline.TRAINING_FEATURES.value
 #: first good check does not put the reported values just under it.
 RUN_UNTIL_R_HAT: float = 1.05
 #: Iterations per chain between a run-until-converged posterior's checks after its first
-#: (``posterior.RunUntil.check_every``). Measured post hoc on 320-iteration d = 50 Sample-Z runs
-#: (seeds 0-5 of both latent conditions): blocks of 16 instead of 64 stop the same runs after
-#: 7-13% fewer gradient evaluations, at the same R-hat threshold.
+#: (``posterior.RunUntil.check_every``) in every default sampler setting: short blocks stop a
+#: converged run soon after it converges (docs/benchmarks.md).
 CHECK_EVERY: int = 16
 
 
@@ -132,27 +120,22 @@ class SamplerSettings:
     (``posterior.RunUntil.check_every``; 0: its default); every default below checks every
     :data:`CHECK_EVERY`.
 
-    The defaults, measured on Sample-Z at beta 50 (15x15, T = 30):
+    The defaults (``TrialSpec.sample_z_sampler`` / ``maxent_z_sampler``; their convergence
+    and cost are in docs/benchmarks.md):
 
-    - d <= 10 (side_effects, reward_hacking): 8 chains, 200 warm-up iterations, up to 2000, of
+    - Sample-Z, d <= 10 (side_effects, reward_hacking): 8 chains of
       ``independence_elliptical`` (a t-proposal jump around the fitted Gaussian, then a slice
-      move). On the experiment's first 40 posteriors per condition at 100 proxies it converged
-      39 and 40 (at 1000 proxies, the first 20: 20 and 20) in
-      124 and 149 s in all (the default run's timings); the elliptical kernel alone at the same
-      settings 39 and 40 in 136 and 179 s (two processes, as in the run), with three runs at the
-      cap instead of one (``bench_inference.py --levers``
-      on seeds 0-5: both 12 of 12, elliptical 1.4x the ESS per second). Most of the gain over
-      the earlier 100 warm-up iterations and cap 600 (93 and 92 of 100) is the longer run.
-    - d = 50: HMC (4 chains), 100 warm-up iterations (at most 32 leapfrog steps each until the
-      final buffer), then trajectories of 2.5 preconditioned units of at most 64 steps, up to 300
-      iterations, checked every 16; runs still above R-hat 1.4 after 50 iterations give up. With
-      150 warm-up iterations and checks every 64 these settings converged latent_raw at the
-      experiments' 1000 proxies (96 of 100, 2563 CPU s for the cell). On seeds 6-17 of both
-      latent conditions, with checks every 16, 100 warm-up iterations met the run's R-hat <= 1.05
-      in 24 of 24 at 16.9 CPU s per posterior, 150 in 23 of 24 at 19.3 s (two processes, one run).
-      The default run with these settings: latent_raw 96 of 100 in 1852 CPU s.
-      At 100 proxies no sampler tried converges within any affordable budget (README,
-      Benchmarks), which is why the experiments use 1000.
+      move), 200 warm-up iterations, run until converged for at most 2000 iterations.
+    - Sample-Z, d = 50: HMC, 4 chains, 100 warm-up iterations (at most 32 leapfrog steps each
+      until the final buffer), then trajectories of 2.5 preconditioned units of at most 64
+      steps, at most 300 iterations; a run still above ``posterior.GIVE_UP_R_HAT`` after 50
+      iterations gives up.
+    - MaxEnt-Z: HMC, 4 chains, 50 warm-up iterations, at most 16 leapfrog steps, at most 1000
+      iterations.
+
+    Every default checks convergence every :data:`CHECK_EVERY` iterations. Sample-Z uses
+    ``posterior.DEFAULT_NUM_PROXY_SAMPLES`` proxies: with fewer its posterior does not converge
+    within these budgets.
     """
 
     num_chains: int
@@ -192,19 +175,23 @@ class SamplerSettings:
                                   max_iterations=self.max_iterations, give_up_after=self.give_up_after,
                                   check_every=self.check_every)
 
+    def settings(self) -> posterior.SamplerSettings:
+        """This recipe as the sampler's keyword record (0 = the sampler's default -> None)."""
+        return posterior.SamplerSettings(
+            num_chains=self.num_chains, warmup=self.warmup, thin=self.thin, max_leapfrog=self.max_leapfrog,
+            kernel=self.kernel, warmup_max_leapfrog=self.warmup_max_leapfrog or None,
+            trajectory_length=self.trajectory_length or None, until_converged=self.run_until())
+
     def options(self) -> dict:
         """These settings as ``posterior.sample_joint_posterior``'s keyword arguments."""
-        return dict(num_chains=self.num_chains, warmup=self.warmup, thin=self.thin, max_leapfrog=self.max_leapfrog,
-                    until_converged=self.run_until(), kernel=self.kernel,
-                    warmup_max_leapfrog=self.warmup_max_leapfrog or None,
-                    trajectory_length=self.trajectory_length or None)
+        return self.settings().kwargs()
 
 
 @dataclass(frozen=True)
 class TrialSpec:
     """Everything one trial depends on (a trial is a pure function of this).
 
-    Defaults are the experiment defaults of ``scripts/run_experiments.py``: the paper's scale
+    Defaults are the experiment defaults of ``ird-experiments`` (:mod:`ird_core.experiments.cli`): the paper's scale
     (15x15 maps, T = 30, 50-d observations); :data:`QUICK` holds the small setting.
     ``num_chains``, ``warmup``, ``thin``, ``max_leapfrog`` are shared by both Z-approximations
     unless ``sample_z_sampler`` / ``maxent_z_sampler`` give that method its own
@@ -224,7 +211,7 @@ class TrialSpec:
     warmup: int = 50
     thin: int = 4
     max_leapfrog: int = 16
-    num_proxy_samples: int = posterior.DEFAULT_NUM_PROXY_SAMPLES  # 1000: Sample-Z converges (see SamplerSettings)
+    num_proxy_samples: int = posterior.DEFAULT_NUM_PROXY_SAMPLES  # Sample-Z converges with these (SamplerSettings)
     factorial_samples: int = 16
     traj_work_limit: int = 50_000
     z_methods: tuple[str, ...] = Z_METHODS
@@ -253,7 +240,7 @@ class TrialSpec:
         return own if own is not None else SamplerSettings(self.num_chains, self.warmup, self.thin, self.max_leapfrog)
 
 
-#: The small setting for a fast look (``run_experiments.py --quick``; ``ird_core.experiments.active``'s defaults).
+#: The small setting for a fast look (``ird-experiments --quick``; ``ird_core.experiments.active``'s defaults).
 QUICK: dict = {"size": 8, "horizon": 12, "obs_dim": 10, "num_samples": 64, "num_chains": 4, "warmup": 50, "thin": 4,
                "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_work_limit": 1_000_000,
                "sample_z_sampler": None, "maxent_z_sampler": None}
@@ -297,18 +284,19 @@ def _derived_seed(seed: int, *keys: int) -> int:
     return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0])
 
 
-def _outcome(inst: lavaland.LavalandInstance, cells) -> tuple[bool, bool, float]:
+def _outcome(inst: lavaland.LavalandInstance, cells: Sequence[tuple[int, int]]) -> tuple[bool, bool, float]:
+    """(touched lava, reached a target, true return; NaN without true rewards) of a path."""
     labels = inst.test_labels
     rewards = inst.true_terrain_reward
-    return lavaland.touches_lava(labels, cells), lavaland.reaches_target(labels, cells), \
-        (math.nan if rewards is None else lavaland.true_return(labels, cells, rewards))
+    return evaluation.touches_lava(labels, cells), evaluation.reaches_target(labels, cells), \
+        (math.nan if rewards is None else evaluation.true_return(labels, cells, rewards))
 
 
 def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) -> posterior.Posterior:
     """The joint posterior over the instance's training worlds (one for Lavaland)."""
     method_index = Z_METHODS.index(method) + 1
     sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
-    observations = lavaland.proxy_observations(
+    observations = posterior.proxy_observations(
         inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
         spec.prior_sigma)
     settings = spec.sampler(method).for_dim(observations[0].dim)
@@ -342,7 +330,7 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
         oracle = tuple((int(r), int(c)) for r, c in cells)
         results.append(TrialResult("main", spec.condition, spec.seed, "oracle", "", "oracle", "none",
                                    *_outcome(inst, oracle), value, "dp", False, 0.0, math.nan, math.nan, oracle))
-    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     for method in spec.z_methods:
         t0 = time.perf_counter()
         post = _posterior(spec, inst, method)
@@ -378,156 +366,8 @@ def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarr
     return plans
 
 
-# --------------------------------------------------------------------------- statistics
-
-
-def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion; ``(nan, nan)`` for ``n = 0``."""
-    if n <= 0:
-        return math.nan, math.nan
-    if not 0 <= successes <= n:
-        raise ValueError(f"successes must be in 0..{n}, got {successes}")
-    z = float(stats.norm.ppf(0.5 + confidence / 2))
-    p = successes / n
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    low = 0.0 if successes == 0 else max(0.0, centre - half)
-    high = 1.0 if successes == n else min(1.0, centre + half)
-    return low, high
-
-
-def t_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:
-    """``(mean, low, high)``: Student-t interval of the mean (``low = high = mean`` if n = 1)."""
-    x = np.asarray(values, dtype=np.float64)
-    if x.size == 0:
-        return math.nan, math.nan, math.nan
-    mean = float(x.mean())
-    if x.size == 1:
-        return mean, mean, mean
-    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
-    return mean, mean - half, mean + half
-
-
-def gap_share(literal: float | np.ndarray, oracle: float | np.ndarray, planner: float | np.ndarray
-              ) -> float | np.ndarray:
-    """Share of the literal-to-oracle gap a planner closes, ``(planner - literal) / (oracle -
-    literal)`` (1 = oracle, 0 = literal, negative = below literal); NaN where ``oracle <= literal``
-    (no gap to close). Elementwise on broadcastable arrays of mean returns."""
-    literal, oracle, planner = (np.asarray(v, dtype=np.float64) for v in (literal, oracle, planner))
-    gap = oracle - literal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.where(gap > 0, (planner - literal) / np.where(gap > 0, gap, 1.0), np.nan)
-    return float(share) if share.ndim == 0 else share
-
-
-def gap_closed(literal: Sequence[float], oracle: Sequence[float], planner: Sequence[float], seed: int = 0,
-               resamples: int = 2000, confidence: float = 0.95) -> tuple[float, float, float]:
-    """``(share, low, high)``: :func:`gap_share` of the mean true returns of paired trials and its
-    percentile bootstrap interval.
-
-    Args:
-        literal, oracle, planner: ``(n,)`` true returns, entry ``i`` of each from the same trial.
-        seed: seeds the bootstrap (same inputs and seed, same interval).
-        resamples: bootstrap resamples ``B``; each draws ``n`` trial indices with replacement and
-            keeps the three planners' returns of a trial together (paired).
-    Returns:
-        the share and the ``confidence`` percentile interval of the resampled shares (resamples
-        without a gap are dropped); all NaN when ``n = 0`` or the mean gap is ``<= 0``.
-    """
-    arrays = [np.asarray(v, dtype=np.float64).reshape(-1) for v in (literal, oracle, planner)]
-    if len({a.size for a in arrays}) != 1:
-        raise ValueError("literal, oracle, planner: must have the same length (paired trials), got "
-                         f"{[a.size for a in arrays]}")
-    x = np.stack(arrays)  # (3, n)
-    if resamples < 1:
-        raise ValueError(f"resamples must be >= 1, got {resamples!r}")
-    n = x.shape[1]
-    share = gap_share(*x.mean(axis=1)) if n else math.nan
-    if math.isnan(share):
-        return math.nan, math.nan, math.nan
-    index = np.random.default_rng(seed).integers(0, n, size=(resamples, n))  # (B, n)
-    boot = gap_share(*x[:, index].mean(axis=2))  # (B,)
-    boot = boot[~np.isnan(boot)]
-    if boot.size == 0:
-        return share, math.nan, math.nan
-    alpha = 100 * (1 - confidence) / 2
-    low, high = np.percentile(boot, [alpha, 100 - alpha])
-    return share, float(low), float(high)
-
-
-RESULT_COLUMNS: tuple[str, ...] = (
-    "experiment", "condition", "planner", "z_approx", "granularity", "baseline", "trials",
-    "lava_fraction", "lava_ci_low", "lava_ci_high", "target_fraction", "target_ci_low",
-    "target_ci_high", "mean_true_return", "return_ci_low", "return_ci_high", "gap_closed", "gap_ci_low",
-    "gap_ci_high", "fallbacks",
-    "mean_infer_seconds", "max_r_hat", "nonconverged")
-
+#: The columns of ``trials.csv``: :class:`TrialResult`'s fields.
 TRIAL_COLUMNS: tuple[str, ...] = (
     "experiment", "condition", "seed", "planner", "z_approx", "granularity", "baseline",
     "touched_lava", "reached_target", "true_return", "objective", "solver", "fallback",
     "infer_seconds", "r_hat_max", "acceptance_rate", "cells")
-
-
-@dataclass(frozen=True)
-class CellSummary:
-    experiment: str
-    condition: str
-    planner: str
-    z_approx: str
-    granularity: str
-    baseline: str
-    trials: int
-    lava_fraction: float
-    lava_ci_low: float
-    lava_ci_high: float
-    target_fraction: float
-    target_ci_low: float
-    target_ci_high: float
-    mean_true_return: float
-    return_ci_low: float
-    return_ci_high: float
-    gap_closed: float  # share of the literal-to-oracle gap (gap_closed()); NaN for literal and oracle
-    gap_ci_low: float
-    gap_ci_high: float
-    fallbacks: int
-    mean_infer_seconds: float
-    max_r_hat: float
-    nonconverged: int
-
-    def row(self) -> dict:
-        return dataclasses.asdict(self)
-
-
-def _paired_gap(groups: dict, condition: str, rs: list[TrialResult]) -> tuple[float, float, float]:
-    """:func:`gap_closed` of IRD results ``rs`` against the main literal and oracle of their
-    condition, over the seeds all three have; NaN without them (literal and oracle rows too)."""
-    literal, oracle = groups.get(("main", condition, "literal")), groups.get(("main", condition, "oracle"))
-    if not rs[0].z_approx or literal is None or oracle is None:
-        return math.nan, math.nan, math.nan
-    by = [{r.seed: r.true_return for r in g} for g in (literal, oracle, rs)]
-    seeds = sorted(set(by[0]) & set(by[1]) & set(by[2]))
-    return gap_closed(*([b[s] for s in seeds] for b in by))
-
-
-def aggregate(results: Iterable[TrialResult]) -> list[CellSummary]:
-    """One summary per (experiment, condition, planner), in first-seen order."""
-    groups: dict[tuple[str, str, str], list[TrialResult]] = {}
-    for r in results:
-        groups.setdefault((r.experiment, r.condition, r.planner), []).append(r)
-    out = []
-    for (experiment, condition, planner), rs in groups.items():
-        n = len(rs)
-        lava = sum(r.touched_lava for r in rs)
-        target = sum(r.reached_target for r in rs)
-        mean, lo, hi = t_interval([r.true_return for r in rs])
-        gap = _paired_gap(groups, condition, rs)
-        rhats = [r.r_hat_max for r in rs if not math.isnan(r.r_hat_max)]
-        out.append(CellSummary(
-            experiment, condition, planner, rs[0].z_approx, rs[0].granularity, rs[0].baseline, n,
-            lava / n, *wilson_interval(lava, n), target / n, *wilson_interval(target, n), mean, lo, hi, *gap,
-            sum(r.fallback for r in rs),
-            float(np.mean([r.infer_seconds for r in rs])),
-            max(rhats) if rhats else math.nan,
-            sum(rh > posterior.R_HAT_CONVERGED for rh in rhats)))
-    return out

@@ -1,21 +1,39 @@
-"""MCMC: kernels as init/step pairs, warm-up adaptation, chains, convergence diagnostics."""
+"""MCMC (the posterior's sampler engine, docs/spec.md section 3): kernels as blackjax-style
+init/step pairs, one per module (``rwm``, ``mala``, ``hmc``, ``elliptical_slice``,
+``independence``; by name in ``kernels``), their shared types (``base``), warm-up adaptation
+(``adaptation``), batched chains (``chains``) and convergence diagnostics (``diagnostics``)."""
 
 from __future__ import annotations
 
-from ird_core.mcmc.chains import (
-    ChainContinuation,
+from ird_core.mcmc.adaptation import (
     DualAveraging,
-    MCMCResult,
-    ProgressFn,
     WarmupState,
     WarmupStep,
-    continue_chains,
     estimate_preconditioner,
     find_initial_step,
-    sample_chains,
     warmup_schedule,
     warmup_update,
     warmup_windows,
+)
+from ird_core.mcmc.base import (
+    DIVERGENCE_THRESHOLD,
+    PRECONDITIONERS,
+    ChainState,
+    Kernel,
+    KernelParams,
+    LogDensityFn,
+    Preconditioner,
+    StepInfo,
+    gradient_init,
+    metropolis_accept,
+    rwm_init,
+)
+from ird_core.mcmc.chains import (
+    ChainContinuation,
+    MCMCResult,
+    ProgressFn,
+    continue_chains,
+    sample_chains,
 )
 from ird_core.mcmc.diagnostics import (
     bulk_effective_sample_size,
@@ -25,41 +43,30 @@ from ird_core.mcmc.diagnostics import (
     split_chains,
     split_r_hat,
 )
-from ird_core.mcmc.kernels import (
-    DIVERGENCE_THRESHOLD,
+from ird_core.mcmc.elliptical_slice import (
     ELLIPTICAL_MAX_SHRINKS,
     ELLIPTICAL_WIDTH,
-    INDEPENDENCE_DOF,
-    INDEPENDENCE_WIDTH,
-    KERNEL_TABLE,
-    KERNELS,
-    PRECONDITIONERS,
-    TARGET_ACCEPT,
-    ChainState,
-    Kernel,
-    KernelParams,
-    LogDensityFn,
-    Preconditioner,
-    StepInfo,
     elliptical_residual,
     elliptical_step,
-    get_kernel,
-    gradient_init,
-    hmc_step,
+)
+from ird_core.mcmc.hmc import hmc_step, leapfrog
+from ird_core.mcmc.independence import (
+    INDEPENDENCE_DOF,
+    INDEPENDENCE_WIDTH,
     independence_elliptical_step,
     independence_log_proposal,
     independence_step,
-    leapfrog,
-    mala_log_proposal,
-    mala_mean,
-    mala_step,
-    metropolis_accept,
+)
+from ird_core.mcmc.kernels import (
+    KERNEL_TABLE,
+    KERNELS,
+    TARGET_ACCEPT,
+    get_kernel,
     num_leapfrog_steps,
-    rwm_init,
-    rwm_proposal,
-    rwm_step,
     step_sizes,
 )
+from ird_core.mcmc.mala import mala_log_proposal, mala_mean, mala_step
+from ird_core.mcmc.rwm import rwm_proposal, rwm_step
 
 __all__ = [
     "KERNELS",

@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
-from ird_core.mdp.passes import (
+from ird_core.mdp.grid import (
     MOVES,
     GridMDP,
     cell_rewards,
+    path_features,
+    path_return,
+    successor_table,
+    validate_path,
+)
+from ird_core.mdp.passes import (
     expected_visitation,
     feature_expectations,
     hard_values,
     log_partition,
     log_partition_and_feature_expectations,
     optimal_path,
-    path_features,
-    path_return,
     soft_values,
-    successor_table,
-    validate_path,
     warm_up,
 )
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from ird_core.mdp import GridMDP, successor_table
+from ird_core.mdp.grid import GridMDP, successor_table
 
 __all__ = ["all_trajectories", "trajectory_features", "brute_log_partition",
            "brute_feature_expectations", "brute_visitation"]

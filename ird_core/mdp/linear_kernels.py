@@ -15,8 +15,7 @@ Layout and meaning of the arrays: ``ird_core.mdp.linear_passes`` (``_FlatGrids``
 loop over cells (the exponentials, rescaling every ``_RESCALE_EVERY`` steps, logs, the underflow
 flags) stays in numpy there: numpy's ``exp`` and ``log`` need not round like the C library's.
 
-Measured (``scripts/bench_mdp.py``, second table): 2.5-3x per call at 4-32 weights; the
-experiments' default run went from 42.7 to 13.2 minutes with the same results.
+Speed-ups are measured by ``scripts/bench_mdp.py`` (docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -36,7 +35,7 @@ ENGINES: tuple[str, ...] = ("auto", "numpy", "numba")
 
 @lru_cache(maxsize=1)
 def available() -> bool:
-    """Whether numba is installed (without importing it: that takes ~0.3 s, paid on first use)."""
+    """Whether numba is installed (without importing it: that is slow, paid on first use)."""
     return importlib.util.find_spec("numba") is not None
 
 
@@ -168,9 +167,9 @@ class Kernels(NamedTuple):
 
 @lru_cache(maxsize=1)
 def compiled() -> Kernels:
-    """The kernels compiled with numba, made on first use: importing numba costs ~0.3 s, which
-    processes that never run a pass (most ROS nodes) should not pay. ``cache=True``: compiled once
-    per machine into ``__pycache__`` (~3.5 s), then loaded in ~0.5 s."""
+    """The kernels compiled with numba, made on first use: importing numba takes a noticeable
+    fraction of a second, which processes that never run a pass (most ROS nodes) should not pay.
+    ``cache=True``: compiled once per machine into ``__pycache__``, then loaded from there."""
     import numba  # noqa: PLC0415 - deliberately lazy, see above
 
     jit = numba.njit(cache=True, nogil=True, error_model="numpy")

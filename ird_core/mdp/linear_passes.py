@@ -1,6 +1,7 @@
 """The fast path of ``ird_core.mdp``: scaled linear-space passes on a flat zero-padded layout.
 
-Private to ``ird_core.mdp``, which calls it: it takes an MDP's per-cell rewards and returns
+Internal to the ``ird_core.mdp`` package (:mod:`ird_core.mdp.passes` calls its entry points
+:func:`linear_backward` and :func:`linear_visitation`): it takes an MDP's per-cell rewards and returns
 log Z, expected visits and flags for the batch elements that must be recomputed with
 ``mdp``'s exact log-space passes. The passes' time loops run as numpy calls or, when numba is
 installed, as the compiled kernels of ``ird_core.mdp.linear_kernels`` (``IRD_ENGINE``), which give
@@ -13,14 +14,11 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ird_core.mdp import linear_kernels
-
-if TYPE_CHECKING:
-    from ird_core.mdp import GridMDP
+from ird_core.mdp.grid import GridMDP
 
 # --------------------------------------------------------------------------------------------
 # Fast path: scaled linear-space passes on a flat zero-padded layout
@@ -129,7 +127,7 @@ def _neighbour_sum(src: "tuple[np.ndarray, ...]", dst: np.ndarray) -> None:
 
     ``src``: a row's five windows (``_FlatGrids.windows`` applied: here, left, right, up, down);
     ``dst``: another row's ``here`` window. The views are made once per work array (``_work``)
-    instead of five slicings per step: about 8% of a pass at 4-16 weights, bit for bit the same.
+    instead of five slicings per step (bit for bit the same).
     """
     here, left, right, up, down = src
     np.add(here, left, out=dst)
@@ -139,7 +137,7 @@ def _neighbour_sum(src: "tuple[np.ndarray, ...]", dst: np.ndarray) -> None:
 
 
 @dataclass(frozen=True, eq=False)
-class _LinearBackward:
+class LinearBackward:
     """The fast backward pass of a chunk of the batch.
 
     Attributes:
@@ -210,7 +208,7 @@ def _work(role: str, rows: int, layout: _FlatGrids) -> _Work:
     return out
 
 
-def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) -> _LinearBackward:
+def linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) -> LinearBackward:
     """Scaled linear-space soft values of ``rewards`` ``(K, H, W)`` (finite)."""
     k = rewards.shape[0]
     layout = _layout(k, mdp.height, mdp.width)
@@ -254,11 +252,11 @@ def _linear_backward(mdp: GridMDP, rewards: np.ndarray, keep_sums: bool = True) 
     with np.errstate(divide="ignore"):
         log_start = np.log(v[layout.positions(*mdp.start)])
     suspect = ~(log_start - _log_underflow_error(horizon) >= -_LOG_RELATIVE_TOLERANCE)
-    return _LinearBackward(layout, exp_rewards, sums if keep_sums else None, values if keep_sums else None,
+    return LinearBackward(layout, exp_rewards, sums if keep_sums else None, values if keep_sums else None,
                            log_start + log_scale + (horizon + 1) * peak, suspect)
 
 
-def _linear_visitation(mdp: GridMDP, back: _LinearBackward) -> tuple[np.ndarray, np.ndarray]:
+def linear_visitation(mdp: GridMDP, back: LinearBackward) -> tuple[np.ndarray, np.ndarray]:
     """Expected visits ``(K, H, W)`` from forward probabilities under the soft-optimal policy
     ``pi(s' | s) = v[t + 1](s') / u[t](s)``, and a ``(K,)`` flag, True where they may be off by
     more than ``_RELATIVE_TOLERANCE``."""

@@ -1,14 +1,8 @@
-"""Deterministic finite-horizon grid MDPs and exact maximum-entropy trajectory inference.
+"""Exact maximum-entropy trajectory inference on grid MDPs (docs/spec.md sections 1-2).
 
-Conventions (docs/spec.md section 1):
-
-- A map is a feature array ``F`` of shape ``(H, W, d)``; cell ``(row, col)`` has state index
-  ``s = row * W + col``; row 0 is the bottom row.
-- The successors of a cell are the cell itself ("stay") and its in-grid 4-neighbours, each once.
-  The relation is symmetric, so predecessors equal successors, which lets the forward and the
-  backward passes share one operator.
-- A trajectory ``xi = (s_0, ..., s_T)`` has ``T = horizon`` moves and ``T + 1`` states, start
-  included; ``phi(xi) = sum_t F[s_t]`` and ``r(xi; w) = w . phi(xi)``.
+The grid, its moves and paths follow the conventions of :mod:`ird_core.mdp.grid`; the successor
+relation is symmetric, so predecessors equal successors, which lets the forward and the backward
+passes share one operator.
 
 Maximum-entropy agent (section 2): ``P(xi | w) ∝ exp(w . phi(xi))`` over all trajectories.
 Every quantity is computed exactly by dynamic programming over the grid, vectorised over a
@@ -25,125 +19,28 @@ batch of ``K`` weight vectors and over cells, never a Python loop over cells or 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from ird_core.mdp.linear_passes import _linear_backward, _linear_visitation
+from ird_core.mdp.grid import MOVES, GridMDP, cell_rewards
+from ird_core.mdp.linear_passes import linear_backward, linear_visitation
 
 __all__ = [
-    "MOVES",
-    "GridMDP",
-    "cell_rewards",
     "soft_values",
     "log_partition",
     "expected_visitation",
     "feature_expectations",
     "hard_values",
     "optimal_path",
-    "successor_table",
-    "path_features",
-    "path_return",
-    "validate_path",
     "warm_up",
+    "log_partition_and_feature_expectations",
 ]
-
-#: The actions as (d_row, d_col), in tie-breaking order: "stay" first, so an indifferent agent
-#: stays put, then up (row + 1), down, right (col + 1), left.
-MOVES: tuple[tuple[int, int], ...] = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1))
-
-
-@dataclass(frozen=True, eq=False)
-class GridMDP:
-    """A deterministic grid MDP with a finite horizon.
-
-    Attributes:
-        features: ``(H, W, d)`` float64 feature array, finite.
-        start: ``(row, col)`` start cell, on the map.
-        horizon: ``T >= 1`` moves; trajectories visit ``T + 1`` states.
-    """
-
-    features: np.ndarray
-    start: tuple[int, int]
-    horizon: int
-
-    def __post_init__(self) -> None:
-        features = np.asarray(self.features, dtype=np.float64)
-        if features.ndim != 3:
-            raise ValueError(f"features: expected shape (H, W, d), got {features.shape}")
-        if min(features.shape) < 1:
-            raise ValueError(f"features: every dimension must be >= 1, got {features.shape}")
-        if not np.all(np.isfinite(features)):
-            raise ValueError("features: contains NaN or infinite values")
-        try:
-            row, col = (int(v) for v in self.start)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"start: expected (row, col), got {self.start!r}") from exc
-        height, width = features.shape[:2]
-        if not (0 <= row < height and 0 <= col < width):
-            raise ValueError(f"start: ({row}, {col}) is off the {height}x{width} map")
-        if isinstance(self.horizon, bool) or int(self.horizon) != self.horizon or self.horizon < 1:
-            raise ValueError(f"horizon: expected an integer >= 1, got {self.horizon!r}")
-        features.setflags(write=False)
-        object.__setattr__(self, "features", features)
-        object.__setattr__(self, "start", (row, col))
-        object.__setattr__(self, "horizon", int(self.horizon))
-
-    @property
-    def height(self) -> int:
-        return int(self.features.shape[0])
-
-    @property
-    def width(self) -> int:
-        return int(self.features.shape[1])
-
-    @property
-    def num_features(self) -> int:
-        return int(self.features.shape[2])
-
-    @property
-    def num_states(self) -> int:
-        return self.height * self.width
-
-    @property
-    def start_state(self) -> int:
-        return self.start[0] * self.width + self.start[1]
-
-    def with_features(self, features: np.ndarray) -> "GridMDP":
-        """The same grid, start and horizon with another ``(H, W, d')`` feature array."""
-        return GridMDP(features, self.start, self.horizon)
-
-
-def _as_weights(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
-    """Validate a ``(K, d)`` batch of weight vectors (a single ``(d,)`` vector is rejected)."""
-    w = np.asarray(weights, dtype=np.float64)
-    if w.ndim != 2 or w.shape[1] != mdp.num_features:
-        raise ValueError(f"weights: expected shape (K, {mdp.num_features}), got {w.shape}")
-    if not np.all(np.isfinite(w)):
-        raise ValueError("weights: contains NaN or infinite values")
-    return w
-
-
-def cell_rewards(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
-    """Per-cell rewards ``w_k . F[row, col]``.
-
-    Args:
-        weights: ``(K, d)``.
-    Returns:
-        ``(K, H, W)``.
-    """
-    w = _as_weights(mdp, weights)
-    # A plain gemm: einsum's path search cost 0.16 ms a call, 7% of an MCMC step at 15x15.
-    flat = mdp.features.reshape(-1, mdp.num_features)
-    return (w @ flat.T).reshape(len(w), mdp.height, mdp.width)
-
 
 def _shifted(values: np.ndarray, fill: float) -> list[np.ndarray]:
     """The five successor views of ``values`` ``(..., H, W)``, off-grid entries set to ``fill``.
 
     Entry ``m`` at ``[..., r, c]`` holds ``values[..., r + dr, c + dc]`` for ``MOVES[m]``.
     """
-    # np.full + one assignment: ~4x cheaper than np.pad on the small grids of the hot loops.
+    # np.full + one assignment: cheaper than np.pad on the small grids of the hot loops.
     padded = np.full(values.shape[:-2] + (values.shape[-2] + 2, values.shape[-1] + 2), fill)
     padded[..., 1:-1, 1:-1] = values
     views = []
@@ -235,8 +132,8 @@ def _log_visitation_exact(mdp: GridMDP, rewards: np.ndarray) -> tuple[np.ndarray
 
 
 #: Working set of one fast-path chunk (the kept neighbour sums and values, two
-#: ``(T + 1) (H + 1) (W + 1)`` float64 arrays per weight). Larger batches are split evenly:
-#: measured on 15x15, T = 30 (2-core EPYC), 55 us per weight at K = 64 in one chunk.
+#: ``(T + 1) (H + 1) (W + 1)`` float64 arrays per weight), sized to stay in cache. Larger
+#: batches are split evenly.
 _CHUNK_BYTES = 8_000_000
 
 
@@ -257,9 +154,9 @@ def _visitation_and_log_partition(mdp: GridMDP, weights: np.ndarray) -> tuple[np
     visits = np.empty(rewards.shape)
     log_z = np.empty(len(rewards))
     for part in _chunks(mdp, len(rewards)):
-        back = _linear_backward(mdp, rewards[part])
+        back = linear_backward(mdp, rewards[part])
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            visits[part], unsure = _linear_visitation(mdp, back)
+            visits[part], unsure = linear_visitation(mdp, back)
         log_z[part] = back.log_z
         redo = np.flatnonzero(back.suspect | unsure | ~np.isfinite(back.log_z)) + part.start
         if len(redo):
@@ -280,7 +177,7 @@ def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     log_z = np.empty(len(rewards))
     redo = np.zeros(len(rewards), dtype=bool)
     for part in _chunks(mdp, len(rewards)):
-        back = _linear_backward(mdp, rewards[part], keep_sums=False)
+        back = linear_backward(mdp, rewards[part], keep_sums=False)
         log_z[part], redo[part] = back.log_z, back.suspect | ~np.isfinite(back.log_z)
     if redo.any():
         row, col = mdp.start
@@ -317,9 +214,6 @@ def log_partition_and_feature_expectations(
     visits, log_z = _visitation_and_log_partition(mdp, weights)
     flat = mdp.features.reshape(mdp.num_states, mdp.num_features)
     return log_z, visits.reshape(len(visits), mdp.num_states) @ flat
-
-
-__all__.append("log_partition_and_feature_expectations")
 
 
 def _check_cell_rewards(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
@@ -373,53 +267,11 @@ def optimal_path(mdp: GridMDP, rewards: np.ndarray) -> tuple[list[tuple[int, int
     return cells, float(values[0][mdp.start])
 
 
-def successor_table(height: int, width: int) -> np.ndarray:
-    """Successor state indices of every cell, ``-1`` where a move leaves the grid.
-
-    Returns:
-        ``(H * W, 5)`` int64, columns in ``MOVES`` order (column 0 is the cell itself).
-    """
-    rows, cols = np.divmod(np.arange(height * width), width)
-    table = np.full((height * width, len(MOVES)), -1, dtype=np.int64)
-    for m, (d_row, d_col) in enumerate(MOVES):
-        r2, c2 = rows + d_row, cols + d_col
-        inside = (r2 >= 0) & (r2 < height) & (c2 >= 0) & (c2 < width)
-        table[inside, m] = r2[inside] * width + c2[inside]
-    return table
-
-
-def validate_path(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray") -> np.ndarray:
-    """Check that ``cells`` is a legal trajectory of ``mdp``; return it as ``(T + 1, 2)`` ints."""
-    path = np.asarray(cells, dtype=np.int64)
-    if path.shape != (mdp.horizon + 1, 2):
-        raise ValueError(f"cells: expected {mdp.horizon + 1} (row, col) pairs, got shape {path.shape}")
-    if tuple(path[0]) != mdp.start:
-        raise ValueError(f"cells: path starts at {tuple(path[0])}, not at the start {mdp.start}")
-    inside = (path[:, 0] >= 0) & (path[:, 0] < mdp.height) & (path[:, 1] >= 0) & (path[:, 1] < mdp.width)
-    if not inside.all():
-        raise ValueError(f"cells: step {int(np.argmin(inside))} is off the map")
-    steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
-    if np.any(steps > 1):
-        raise ValueError(f"cells: move {int(np.argmax(steps > 1))} is not a stay or a 4-neighbour step")
-    return path
-
-
-def path_features(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray") -> np.ndarray:
-    """``phi(xi) = sum_t F[s_t]`` for a legal path; ``(d,)``."""
-    path = validate_path(mdp, cells)
-    return mdp.features[path[:, 0], path[:, 1]].sum(axis=0)
-
-
-def path_return(mdp: GridMDP, cells: "list[tuple[int, int]] | np.ndarray", weights: np.ndarray) -> np.ndarray:
-    """``w_k . phi(xi)`` for a batch ``(K, d)`` of weights; ``(K,)``."""
-    return _as_weights(mdp, weights) @ path_features(mdp, cells)
-
-
 def warm_up() -> None:
     """Run one tiny pass of each kind, so that the compiled engine of the passes
     (``ird_core.mdp.linear_kernels``: numba's import, and its kernels loaded from the cache or
-    compiled, ~0.8 s or ~4 s) is paid now, by a worker starting up, not by its first request.
-    Without numba (or with ``IRD_ENGINE=numpy``) it costs about a millisecond."""
+    compiled) is paid now, by a worker starting up, not by its first request. Without numba (or
+    with ``IRD_ENGINE=numpy``) it is a tiny pass."""
     grid = GridMDP(np.zeros((2, 2, 1)), (0, 0), 2)
     weights = np.zeros((1, 1))
     log_partition(grid, weights)

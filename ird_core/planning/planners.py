@@ -39,37 +39,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT, check_magnitude
+from ird_core.checks import MAX_ABS_FEATURE, check_magnitude
 from ird_core.mdp import GridMDP, log_partition, optimal_path, validate_path
-from ird_core.planning.trajectory_solver import OutOfTime, check_work_limit, plan_trajectory, states_to_cells
-from ird_core.vocabulary import BASELINES, MODES, STATISTICS
+from ird_core.planning.arguments import check_plan_arguments, check_reference, check_weights
+from ird_core.planning.trajectory_bounds import states_to_cells
+from ird_core.planning.trajectory_limits import OutOfTime
+from ird_core.planning.trajectory_solver import plan_trajectory
+from ird_core.vocabulary import Baseline, PlanMode, parse
 
 __all__ = [
-    "MODES",
-    "BASELINES",
-    "SOLVERS",
-    "STATISTICS",
     "Plan",
     "PlanningTimeout",
-    "check_start",
-    "check_plan_arguments",
-    "check_plan_size",
-    "plan_work",
     "reward_baselines",
     "sample_cell_rewards",
     "per_step_reward",
     "path_objective",
     "plan_path",
-    "reward_spread",
-    "risk_map",
 ]
-
-#: Solvers a caller may request per mode (``None`` = automatic).
-SOLVERS: dict[str, tuple[str, ...]] = {
-    "literal": ("dp",),
-    "per_step": ("dp",),
-    "trajectory": ("label-bb", "milp-highs"),
-}
 
 
 @dataclass(frozen=True)
@@ -111,118 +97,6 @@ class PlanningTimeout(RuntimeError):
         super().__init__(message)
         self.plan, self.reason = plan, reason
 
-
-# --------------------------------------------------------------------------- validation
-
-
-def _check_choice(value: object, name: str, allowed: tuple[str, ...]) -> str:
-    if not isinstance(value, str) or value not in allowed:
-        raise ValueError(f"{name}: expected one of {allowed}, got {value!r}")
-    return value
-
-
-def _check_weights(weights: np.ndarray, num_features: int) -> np.ndarray:
-    """A finite ``(K, d)`` float64 batch with ``K >= 1``."""
-    w = np.asarray(weights, dtype=np.float64)
-    if w.ndim != 2 or w.shape[0] < 1 or w.shape[1] != num_features:
-        raise ValueError(f"weights: expected shape (K >= 1, {num_features}), got {w.shape}")
-    if not np.all(np.isfinite(w)):
-        raise ValueError("weights: contains NaN or infinite values")
-    return check_magnitude("weights", w, MAX_ABS_WEIGHT)
-
-
-def _check_reference(reference_features: np.ndarray | None, num_features: int) -> np.ndarray | None:
-    if reference_features is None:
-        return None
-    f = np.asarray(reference_features, dtype=np.float64)
-    if f.shape != (num_features,):
-        raise ValueError(f"reference_features: expected shape ({num_features},), got {f.shape}")
-    if not np.all(np.isfinite(f)):
-        raise ValueError("reference_features: contains NaN or infinite values")
-    return check_magnitude("reference_features", f, MAX_ABS_WEIGHT)
-
-
-def check_start(start: tuple[int, int], height: int, width: int) -> tuple[int, int]:
-    """A start cell on an ``height x width`` map, as ``(row, col)`` ints.
-
-    Raises:
-        ValueError: naming ``start_row`` or ``start_col`` (the coordinate that is off the map).
-    """
-    row, col = (int(v) for v in start)
-    if not 0 <= row < height:
-        raise ValueError(f"start_row: {row} is off the map (height {height})")
-    if not 0 <= col < width:
-        raise ValueError(f"start_col: {col} is off the map (width {width})")
-    return row, col
-
-
-def check_plan_arguments(
-    mode: str,
-    baseline: str,
-    weights: np.ndarray | None = None,
-    num_features: int | None = None,
-    reference_features: np.ndarray | None = None,
-    *,
-    solver: str | None = None,
-    time_limit: float | None = None,
-    work_limit: int | None = None,
-) -> np.ndarray | None:
-    """The argument checks of :func:`plan_path` that need no planning.
-
-    A caller that must refuse a bad request before it queues the plan (the planner node) calls
-    this first with what it has: ``weights`` and ``reference_features`` are checked only when
-    given, against ``num_features`` (``d``).
-
-    Returns:
-        ``weights`` as a finite ``(K, d)`` float64 array (``None`` if not given).
-    Raises:
-        ValueError: naming ``mode``, ``baseline``, ``solver``, ``time_limit``, ``work_limit``,
-            ``weights`` or ``reference_features``.
-    """
-    _check_choice(mode, "mode", MODES)
-    _check_choice(baseline, "baseline", BASELINES)
-    if solver is not None:
-        _check_choice(solver, "solver", SOLVERS[mode])
-    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
-                                   or not time_limit > 0):
-        raise ValueError(f"time_limit: expected seconds > 0 or None, got {time_limit!r}")
-    check_work_limit(work_limit, solver)
-    if weights is None or num_features is None:
-        return None
-    w = _check_weights(weights, num_features)
-    if mode == "literal" and len(w) != 1:
-        raise ValueError(f"weights: literal mode takes exactly one weight vector (1, d), got {w.shape}")
-    _check_reference(reference_features, num_features)
-    return w
-
-
-def plan_work(num_samples: int, horizon: int, height: int, width: int) -> int:
-    """``K x (T + 1) x H x W``: the size of the largest table a plan builds (the log_z baseline's
-    and the trajectory solver's per-sample value tables), and the order of its time and memory."""
-    return int(num_samples) * (int(horizon) + 1) * int(height) * int(width)
-
-
-def check_plan_size(num_samples: int, horizon: int, height: int, width: int, max_work: int) -> None:
-    """Refuse a plan whose :func:`plan_work` exceeds ``max_work`` before any work starts.
-
-    Raises:
-        ValueError: naming ``weights`` (the samples are what a request most easily inflates).
-    """
-    work = plan_work(num_samples, horizon, height, width)
-    if work > max_work:
-        raise ValueError(f"weights: {num_samples} samples x horizon {horizon} x {height}x{width} map = {work:.3g} "
-                         f"exceeds max_plan_work={max_work:.3g}")
-
-
-def _check_features(features: np.ndarray) -> np.ndarray:
-    f = np.asarray(features, dtype=np.float64)
-    if f.ndim != 3 or min(f.shape) < 1:
-        raise ValueError(f"features: expected shape (H, W, d) with every dimension >= 1, got {f.shape}")
-    if not np.all(np.isfinite(f)):
-        raise ValueError("features: contains NaN or infinite values")
-    return check_magnitude("features", f, MAX_ABS_FEATURE)
-
-
 # --------------------------------------------------------------------------- rewards
 
 
@@ -243,14 +117,14 @@ def reward_baselines(
     Returns:
         ``(K,)`` float64.
     """
-    _check_choice(baseline, "baseline", BASELINES)
-    w = _check_weights(weights, mdp.num_features)
-    reference = _check_reference(reference_features, mdp.num_features)
-    if baseline == "none":
+    parse(Baseline, baseline, "baseline")
+    w = check_weights(weights, mdp.num_features)
+    reference = check_reference(reference_features, mdp.num_features)
+    if baseline == Baseline.NONE:
         return np.zeros(len(w))
-    if baseline == "initial_state":
+    if baseline == Baseline.INITIAL_STATE:
         return w @ mdp.features[mdp.start]
-    if baseline == "training_features":
+    if baseline == Baseline.TRAINING_FEATURES:
         if reference is None:
             raise ValueError("reference_features: required by the 'training_features' baseline")
         return w @ reference
@@ -268,7 +142,7 @@ def sample_cell_rewards(
     Returns:
         ``(K, H, W)``.
     """
-    w = _check_weights(weights, mdp.num_features)
+    w = check_weights(weights, mdp.num_features)
     return _shifted_rewards(mdp, w, reward_baselines(mdp, w, baseline, reference_features))
 
 
@@ -312,7 +186,7 @@ def path_objective(
 def _objective(mdp: GridMDP, path: np.ndarray, w: np.ndarray, b: np.ndarray, mode: str) -> float:
     """:func:`path_objective` for a checked ``(T + 1, 2)`` path, ``w`` ``(K, d)``, ``b`` ``(K,)``."""
     visited = mdp.features[path[:, 0], path[:, 1]]  # (T+1, d)
-    if mode == "per_step":
+    if mode == PlanMode.PER_STEP:
         return float((visited @ w.T - b).min(axis=1).sum())
     return float(np.min(w @ visited.sum(axis=0) - (mdp.horizon + 1) * b))
 
@@ -380,11 +254,11 @@ def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_featu
     """:func:`plan_path` on checked arguments."""
     b = reward_baselines(mdp, w, baseline, reference_features)
     q = _shifted_rewards(mdp, w, b)
-    if mode == "literal":  # the baseline shifts every path equally: plan on the raw reward
+    if mode == PlanMode.LITERAL:  # the baseline shifts every path equally: plan on the raw reward
         cells = _dp_path(mdp, _shifted_rewards(mdp, w, np.zeros(1))[0])
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
-    if mode == "per_step":
+    if mode == PlanMode.PER_STEP:
         cells = _dp_path(mdp, q.min(axis=0))
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
@@ -409,60 +283,3 @@ def _dp_path(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
     """``optimal_path`` for an ``(H, W)`` reward, as a checked ``(T + 1, 2)`` array."""
     cells, _ = optimal_path(mdp, rewards)
     return validate_path(mdp, cells)
-
-
-# --------------------------------------------------------------------------- risk map
-
-
-def reward_spread(features: np.ndarray, weights: np.ndarray, statistic: str = "std") -> np.ndarray:
-    """Per-cell spread of the posterior reward ``w_i . F[cell]`` over the samples.
-
-    ``std`` is the population standard deviation (ddof 0), ``range`` is max - min. Rewards are
-    taken relative to the first sample (``(w_i - w_0) . F``), which leaves both statistics
-    unchanged and makes identical samples give exactly 0.
-
-    Args:
-        features: ``(H, W, d)``.
-        weights: ``(K, d)``.
-        statistic: one of :data:`STATISTICS`.
-    Returns:
-        ``(H, W)`` float64, >= 0.
-    """
-    f = _check_features(features)
-    w = _check_weights(weights, f.shape[2])
-    _check_choice(statistic, "statistic", STATISTICS)
-    rewards = np.einsum("hwd,kd->khw", f, w - w[:1], optimize=True)
-    if statistic == "std":
-        return rewards.std(axis=0)
-    return np.ptp(rewards, axis=0)
-
-
-def risk_map(
-    features: np.ndarray,
-    weights: np.ndarray,
-    statistic: str = "std",
-    reference: float | None = None,
-) -> np.ndarray:
-    """The reward spread as a Nav2-style ``OccupancyGrid`` cost layer.
-
-    ``cost = ceil(100 * spread / reference)`` clipped to ``[0, 100]``, where ``reference`` is the
-    map's largest spread by default (that cell costs 100) or a fixed spread given by the caller
-    (for costs comparable across maps). Any positive spread costs at least 1; a posterior whose
-    samples agree everywhere costs 0 everywhere; -1 (unknown) is never produced. Monotone: more
-    spread never costs less.
-
-    Args:
-        features: ``(H, W, d)``.
-        weights: ``(K, d)``.
-        statistic: one of :data:`STATISTICS`.
-        reference: ``> 0`` fixed spread mapped to 100, or ``None``.
-    Returns:
-        ``(H, W)`` int8 in ``0..100``, row 0 first (the OccupancyGrid data order).
-    """
-    spread = reward_spread(features, weights, statistic)
-    if reference is not None and not (np.isfinite(reference) and reference > 0):
-        raise ValueError(f"reference: expected a finite spread > 0 or None, got {reference!r}")
-    scale = float(spread.max()) if reference is None else float(reference)
-    if scale <= 0.0:
-        return np.zeros(spread.shape, dtype=np.int8)
-    return np.clip(np.ceil(100.0 * (spread / scale)), 0, 100).astype(np.int8)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ird_core.mdp import GridMDP, optimal_path, successor_table, validate_path
 
-__all__ = ["best_returns", "come_from", "path_states", "start_distance", "successors", "to_go",
+__all__ = ["best_returns", "come_from", "path_states", "start_distance", "states_to_cells", "successors", "to_go",
            "trajectory_value"]
 
 
@@ -84,3 +84,8 @@ def path_states(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
 def trajectory_value(q: np.ndarray, states: np.ndarray) -> float:
     """``min_i sum_t q_i(s_t)`` for ``q`` ``(K, S)`` and a path of state indices."""
     return float(q[:, states].sum(axis=1).min())
+
+
+def states_to_cells(mdp: GridMDP, states: np.ndarray) -> np.ndarray:
+    """``(T + 1,)`` state indices -> checked ``(T + 1, 2)`` cells."""
+    return validate_path(mdp, np.stack(np.divmod(np.asarray(states), mdp.width), axis=1))

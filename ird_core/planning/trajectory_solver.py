@@ -43,43 +43,29 @@ slack) does not exist, for ``label-bb``; for ``milp-highs`` up to HiGHS's tolera
 States are flat indices ``s = row * W + col`` (``S = H * W``); rewards arrive as ``(K, S)``
 (or ``(K, H, W)`` for :func:`plan_trajectory`). Everything is vectorised over samples, labels,
 cells and edges; Python loops run over time steps, solver iterations and memory chunks only.
-The public entry points are :func:`plan_trajectory`, :class:`OutOfTime`, :func:`check_work_limit`
-and :func:`states_to_cells`; :mod:`ird_core.planning` wraps them into ``plan_path``.
+The public entry point is :func:`plan_trajectory` (limits and their exception in
+:mod:`ird_core.planning.trajectory_limits`, the MILP in :mod:`ird_core.planning.trajectory_milp`);
+:mod:`ird_core.planning` wraps it into ``plan_path``.
 """
 
 from __future__ import annotations
 
-import math
-import time
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import Bounds, LinearConstraint, linprog, milp
+from scipy.optimize import linprog
 
-from ird_core.mdp import GridMDP, successor_table, validate_path
+from ird_core.mdp import GridMDP, successor_table
 from ird_core.planning.trajectory_bounds import best_returns as _best_returns
-from ird_core.planning.trajectory_bounds import come_from as _come_from
 from ird_core.planning.trajectory_bounds import path_states as _path_states
 from ird_core.planning.trajectory_bounds import start_distance as _start_distance
+from ird_core.planning.trajectory_bounds import states_to_cells
 from ird_core.planning.trajectory_bounds import to_go as _to_go
 from ird_core.planning.trajectory_bounds import trajectory_value as _trajectory_value
+from ird_core.planning.trajectory_limits import Limits, OutOfTime, check_work_limit
+from ird_core.planning.trajectory_milp import build_trajectory_milp, promising_nodes, solve_trajectory_milp
 
-__all__ = ["OutOfTime", "check_work_limit", "plan_trajectory", "states_to_cells"]
-
-# HiGHS settings for the trajectory MILP: zero optimality gap, tight feasibility tolerances (the
-# problem is normalised so that per-cell rewards are at most 1 in magnitude), and no presolve:
-# HiGHS 1.12's presolve has answered these models with a false "infeasible" and with a wrong
-# "optimal" (a 1.40 path for a 3.22 optimum on a 2x2 map, T = 3; a hypothesis example in
-# tests/core/test_planning.py); without it both solve exactly.
-_HIGHS_OPTIONS = {
-    "presolve": False,
-    "mip_rel_gap": 0.0,
-    "mip_abs_gap": 0.0,
-    "mip_feasibility_tolerance": 1e-9,
-    "primal_feasibility_tolerance": 1e-9,
-}
+__all__ = ["plan_trajectory"]
 # Relative slack when comparing an exactly recomputed path value with a DP bound: only float
 # rounding of two summation orders separates them.
 _CERTIFY_RTOL = 1e-12
@@ -97,43 +83,6 @@ _DOMINANCE_BUDGET = 400_000_000
 
 class _BudgetExceeded(Exception):
     """The label search would need more memory than its budget."""
-
-
-class OutOfTime(Exception):
-    """A limit stopped the plan; carries the best path found (state indices or ``None``), the
-    best proven upper bound, the solver that was running, ``reason``: ``"time"`` (``time_limit``
-    passed) or ``"work"`` (``work_limit`` spent, or the label search's memory budget reached
-    where a work limit rules out the MILP fallback), and ``work``, the label expansions spent."""
-
-    def __init__(self, states: np.ndarray | None, bound: float = math.inf, solver: str = "",
-                 reason: str = "time", message: str = "", work: int = 0) -> None:
-        super().__init__(message or f"{reason} limit reached")
-        self.states, self.bound, self.solver, self.reason, self.work = states, bound, solver, reason, work
-
-
-class _Limits:
-    """A plan's stopping rules: a ``time.monotonic()`` deadline and a count of label expansions.
-
-    The clock is read only when a deadline was set, so a plan under ``work_limit`` alone is a
-    function of its inputs. ``work`` is the count spent so far.
-    """
-
-    def __init__(self, time_limit: float | None = None, work_limit: int | None = None) -> None:
-        self.deadline = math.inf if time_limit is None else time.monotonic() + time_limit
-        self.work_limit, self.work = work_limit, 0
-
-    def time_up(self) -> bool:
-        return not math.isinf(self.deadline) and time.monotonic() > self.deadline
-
-    def check_time(self) -> None:
-        if self.time_up():
-            raise OutOfTime(None, reason="time")
-
-    def spend(self, units: int) -> None:
-        """Count ``units`` expansions; raise once the total passes ``work_limit``."""
-        self.work += units
-        if self.work_limit is not None and self.work > self.work_limit:
-            raise OutOfTime(None, reason="work", message=f"work limit reached after {self.work} label expansions")
 
 
 def _reduce_samples(q: np.ndarray) -> np.ndarray:
@@ -178,7 +127,7 @@ class _Relaxation:
 
 
 def _lp_relaxation(mdp: GridMDP, q: np.ndarray, seeds: list[np.ndarray], tol: float,
-                   limits: _Limits | None = None) -> _Relaxation:
+                   limits: Limits | None = None) -> _Relaxation:
     """Column generation: master LP over path columns (HiGHS), pricing by exact DP.
 
     Args:
@@ -247,7 +196,7 @@ def _dominated(labels: np.ndarray, nodes: np.ndarray, depth: int) -> np.ndarray:
 
 
 def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                  slack: float, limits: _Limits | None = None, beam: int | None = None) -> np.ndarray | None:
+                  slack: float, limits: Limits | None = None, beam: int | None = None) -> np.ndarray | None:
     """Exact branch and bound over the time-expanded graph, breadth first (or a beam search).
 
     A label is a partial path to ``(t, s)`` with return vector ``P`` (K,). It is pruned when no
@@ -273,7 +222,7 @@ def _label_search(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumben
         _BudgetExceeded: more than ``_LABEL_BUDGET`` label entries at some time step.
         OutOfTime: a limit of ``limits`` was reached.
     """
-    limits = _Limits() if limits is None else limits
+    limits = Limits() if limits is None else limits
     k = len(q)
     if (mdp.horizon + 1) * mdp.num_states * (k + len(multipliers)) > _LABEL_BUDGET:
         raise _BudgetExceeded(f"bound tables of {k + len(multipliers)} rows over {mdp.horizon + 1} steps")
@@ -348,7 +297,7 @@ def plan_trajectory(
         ValueError: ``work_limit`` with ``solver="milp-highs"``.
         RuntimeError: HiGHS failed, or ``solver="label-bb"`` ran out of memory budget.
     """
-    limits = _Limits(time_limit, check_work_limit(work_limit, solver))
+    limits = Limits(time_limit, check_work_limit(work_limit, solver))
     q_all = q_cells.reshape(len(q_cells), -1)
     dist = _start_distance(mdp)
     reach = np.flatnonzero(dist <= mdp.horizon)
@@ -386,8 +335,8 @@ def plan_trajectory(
                 return states_to_cells(mdp, best), incumbent, used
         limits.check_time()
         multipliers = np.concatenate([relaxation.multipliers, np.eye(len(q))])
-        model = _build_trajectory_milp(mdp, q, _promising_nodes(mdp, q, multipliers, incumbent, slack, best))
-        cells, dual_bound = _solve_trajectory_milp(mdp, model, limits.deadline)
+        model = build_trajectory_milp(mdp, q, promising_nodes(mdp, q, multipliers, incumbent, slack, best))
+        cells, dual_bound = solve_trajectory_milp(mdp, model, limits.deadline)
     except OutOfTime as exc:
         found = exc.states
         if found is not None and _trajectory_value(q, found) > incumbent:
@@ -398,193 +347,3 @@ def plan_trajectory(
     if _trajectory_value(q, found) > incumbent:  # else keep the incumbent (HiGHS tolerance)
         best, incumbent = found, _trajectory_value(q, found)
     return states_to_cells(mdp, best), max(incumbent, min(upper, dual_bound)), used
-
-
-def check_work_limit(work_limit: object, solver: str | None) -> int | None:
-    """``work_limit`` as an int >= 1 or ``None``.
-
-    Raises:
-        ValueError: naming ``work_limit``: not an int >= 1 (bools refused), or given with
-            ``solver="milp-highs"`` (HiGHS's running time has no deterministic bound).
-    """
-    if work_limit is None:
-        return None
-    if isinstance(work_limit, bool) or not isinstance(work_limit, (int, np.integer)) or work_limit < 1:
-        raise ValueError(f"work_limit: expected an int >= 1 (label expansions) or None, got {work_limit!r}")
-    if solver == "milp-highs":
-        raise ValueError("work_limit: not supported by solver='milp-highs' (HiGHS's running time has no "
-                         "deterministic bound); use solver=None or 'label-bb', or time_limit")
-    return int(work_limit)
-
-
-def states_to_cells(mdp: GridMDP, states: np.ndarray) -> np.ndarray:
-    """``(T + 1,)`` state indices -> checked ``(T + 1, 2)`` cells."""
-    return validate_path(mdp, np.stack(np.divmod(np.asarray(states), mdp.width), axis=1))
-
-
-def _promising_nodes(mdp: GridMDP, q: np.ndarray, multipliers: np.ndarray, incumbent: float,
-                     slack: float, incumbent_states: np.ndarray) -> np.ndarray:
-    """``(T + 1, S)`` mask of the time-expanded nodes a path beating the incumbent may use.
-
-    A node ``(t, s)`` is dropped when, for some simplex row ``lam``, the best ``lam``-weighted
-    path through it (forward DP + backward DP) is no better than ``incumbent + slack``; nodes
-    unreachable from the start by time ``t`` are dropped too. The incumbent's own nodes are
-    always kept, so the MILP stays feasible.
-    """
-    rewards = multipliers @ q
-    through = _come_from(mdp, rewards) + _to_go(mdp, rewards)  # (T+1, m, S)
-    keep = through.min(axis=1) > incumbent + slack
-    keep[np.arange(mdp.horizon + 1), incumbent_states] = True
-    return keep
-
-
-def _time_expanded_edges(mdp: GridMDP, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Edges ``(t, s) -> (t + 1, s')`` between kept nodes.
-
-    Args:
-        nodes: ``(T + 1, S)`` boolean mask of kept (time, state) pairs.
-    Returns:
-        ``(E,)`` arrays ``time``, ``source`` state, ``target`` state.
-    """
-    table = successor_table(mdp.height, mdp.width)
-    times, sources = np.nonzero(nodes[:-1])
-    node, move = np.nonzero(table[sources] >= 0)
-    times, sources, targets = times[node], sources[node], table[sources[node], move]
-    alive = nodes[times + 1, targets]
-    return times[alive], sources[alive], targets[alive]
-
-
-@dataclass(frozen=True)
-class _TrajectoryMilp:
-    """``max_xi min_i sum_t q_i(s_t)`` as a MILP over unit flows in the time-expanded graph.
-
-    Variables, in order: ``x`` (E binaries, one per edge ``(t, s) -> (t + 1, s')``), ``n`` (C
-    visit counts over ``t = 1..T`` of the cells edges enter), ``z`` (the objective, normalised).
-    Rows: unit flow out of the start; conservation at each kept inner ``(t, s)``,
-    ``1 <= t <= T - 1``; ``n[c] - sum of edges into c = 0``; ``z - sum_c q_i(c) n[c] <= q_i(s_0)``
-    per sample.
-    """
-
-    cost: np.ndarray          # (V,)
-    integrality: np.ndarray   # (V,)
-    bounds: Bounds
-    constraints: LinearConstraint
-    edge_time: np.ndarray     # (E,)
-    edge_source: np.ndarray   # (E,)
-    edge_target: np.ndarray   # (E,)
-    scale: float              # objective units per normalised unit
-
-    @property
-    def num_edges(self) -> int:
-        return len(self.edge_time)
-
-
-def _build_trajectory_milp(mdp: GridMDP, q: np.ndarray, nodes: np.ndarray) -> _TrajectoryMilp:
-    """Assemble the sparse MILP, vectorised over edges, nodes and samples.
-
-    Args:
-        q: ``(K, S)`` shifted rewards of the kept samples.
-        nodes: ``(T + 1, S)`` mask of kept (time, state) pairs; must contain a path from the start.
-    """
-    horizon, start = mdp.horizon, mdp.start_state
-    e_time, e_src, e_dst = _time_expanded_edges(mdp, nodes)
-    num_edges = len(e_time)
-    edge_ids = np.arange(num_edges)
-    cells = np.unique(e_dst)
-    num_cells = len(cells)
-    cell_col = np.full(mdp.num_states, -1)
-    cell_col[cells] = np.arange(num_cells)
-    num_vars = num_edges + num_cells + 1
-    # Normalise rewards to magnitude <= 1 so HiGHS's absolute tolerances act as relative ones.
-    used = np.union1d(cells, [start])
-    scale = float(np.abs(q[:, used]).max()) or 1.0
-    qs = q / scale
-
-    node_row = np.full((horizon + 1, mdp.num_states), -1)
-    inner = np.zeros_like(nodes)
-    inner[1:horizon] = nodes[1:horizon]
-    num_inner = int(inner.sum())
-    node_row[inner] = np.arange(num_inner)
-    into, out_of = node_row[e_time + 1, e_dst], node_row[e_time, e_src]
-    has_in, has_out = into >= 0, out_of >= 0
-    conservation = sp.csr_matrix(
-        (np.concatenate([np.ones(has_in.sum()), -np.ones(has_out.sum())]),
-         (np.concatenate([into[has_in], out_of[has_out]]),
-          np.concatenate([edge_ids[has_in], edge_ids[has_out]]))),
-        shape=(num_inner, num_vars))
-    first = edge_ids[e_time == 0]
-    source = sp.csr_matrix((np.ones(len(first)), (np.zeros(len(first), dtype=np.int64), first)),
-                           shape=(1, num_vars))
-    counts = sp.csr_matrix(
-        (np.concatenate([np.ones(num_cells), -np.ones(num_edges)]),
-         (np.concatenate([np.arange(num_cells), cell_col[e_dst]]),
-          np.concatenate([num_edges + np.arange(num_cells), edge_ids]))),
-        shape=(num_cells, num_vars))
-    k = len(qs)
-    samples = sp.hstack([sp.csr_matrix((k, num_edges)), sp.csr_matrix(-qs[:, cells]),
-                         sp.csr_matrix(np.ones((k, 1)))], format="csr")
-    matrix = sp.vstack([source, conservation, counts, samples], format="csr")
-    row_lb = np.concatenate([[1.0], np.zeros(num_inner + num_cells), np.full(k, -np.inf)])
-    row_ub = np.concatenate([[1.0], np.zeros(num_inner + num_cells), qs[:, start]])
-
-    cost = np.zeros(num_vars)
-    cost[-1] = -1.0  # milp minimises
-    var_lb = np.concatenate([np.zeros(num_edges + num_cells), [-np.inf]])
-    var_ub = np.concatenate([np.ones(num_edges), np.full(num_cells, float(horizon)), [np.inf]])
-    integrality = np.concatenate([np.ones(num_edges), np.zeros(num_cells + 1)])
-    return _TrajectoryMilp(cost, integrality, Bounds(var_lb, var_ub), LinearConstraint(matrix, row_lb, row_ub),
-                           e_time, e_src, e_dst, scale)
-
-
-def _run_highs(model: _TrajectoryMilp, options: dict) -> object:
-    with warnings.catch_warnings():  # scipy warns that these HiGHS options are passed verbatim
-        warnings.filterwarnings("ignore", message="Unrecognized options", category=RuntimeWarning)
-        return milp(model.cost, integrality=model.integrality, bounds=model.bounds,
-                    constraints=model.constraints, options=options)
-
-
-def _solve_trajectory_milp(mdp: GridMDP, model: _TrajectoryMilp, deadline: float) -> tuple[np.ndarray, float]:
-    """Solve the model with HiGHS; returns the path's ``(T + 1, 2)`` cells and the dual bound
-    (an upper bound on the objective, in objective units).
-
-    Raises:
-        OutOfTime: HiGHS hit the time left before ``deadline``.
-        RuntimeError: any other non-optimal HiGHS status.
-    """
-    res = _run_highs(model, _with_time_left(dict(_HIGHS_OPTIONS), deadline))
-    dual = res.mip_dual_bound if res.mip_dual_bound is not None else res.fun
-    bound = math.inf if dual is None or not np.isfinite(dual) else -float(dual) * model.scale
-    if res.status == 1:
-        states = None
-        if res.x is not None:
-            chosen = res.x[: model.num_edges] > 0.5
-            cells = _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target)
-            states = cells[:, 0] * mdp.width + cells[:, 1]
-        raise OutOfTime(states, bound)
-    if res.status != 0 or res.x is None:
-        raise RuntimeError(f"trajectory MILP not solved to optimality: status {res.status}: {res.message}")
-    chosen = res.x[: model.num_edges] > 0.5
-    return _path_from_edges(mdp, chosen, model.edge_time, model.edge_source, model.edge_target), bound
-
-
-def _with_time_left(options: dict, deadline: float) -> dict:
-    """HiGHS options with ``time_limit`` set to the time left before ``deadline``."""
-    if math.isinf(deadline):
-        return options
-    left = deadline - time.monotonic()
-    if left <= 0:
-        raise OutOfTime(None)
-    return dict(options, time_limit=left)
-
-
-def _path_from_edges(
-    mdp: GridMDP, chosen: np.ndarray, e_time: np.ndarray, e_src: np.ndarray, e_dst: np.ndarray
-) -> np.ndarray:
-    """Read the path off the chosen edges (exactly one per time step, chained from the start)."""
-    t, src, dst = e_time[chosen], e_src[chosen], e_dst[chosen]
-    order = np.argsort(t, kind="stable")
-    t, src, dst = t[order], src[order], dst[order]
-    if not (np.array_equal(t, np.arange(mdp.horizon)) and src[0] == mdp.start_state
-            and np.array_equal(src[1:], dst[:-1])):
-        raise RuntimeError("trajectory MILP: the chosen edges do not form one path from the start")
-    return states_to_cells(mdp, np.concatenate([[mdp.start_state], dst]))

@@ -1,4 +1,11 @@
-"""The IRD posterior over true reward weights (docs/spec.md sections 3 and 7): per-term likelihoods, evidence (proxy and choice observations), the sampler."""
+"""The IRD posterior over true reward weights (docs/spec.md sections 3 and 7).
+
+Modules: ``likelihoods`` (per-term log likelihoods and gradients, proxy feature counts),
+``evidence`` (proxy and choice observations, the joint posterior), ``proxy_terms`` (the one
+builder of proxy observations), ``laplace`` (the sampler's start), ``warm_start``,
+``run_until`` (extending chains until converged), ``sampler`` (``sample_joint_posterior``),
+``result`` (``Posterior``), ``settings`` (``SamplerSettings``, the sampler's keyword record).
+"""
 
 from __future__ import annotations
 
@@ -15,6 +22,7 @@ from ird_core.posterior.evidence import (
     make_joint_model,
     make_posterior_model,
 )
+from ird_core.posterior.laplace import laplace_approximation
 from ird_core.posterior.likelihoods import (
     DEFAULT_NUM_PROXY_SAMPLES,
     METHODS,
@@ -33,6 +41,14 @@ from ird_core.posterior.likelihoods import (
     sample_z_log_likelihood_grad,
     sample_z_scores,
 )
+from ird_core.posterior.proxy_terms import (
+    proxy_feature_expectations,
+    proxy_observation,
+    proxy_observations,
+    proxy_prior_features,
+)
+from ird_core.posterior.result import R_HAT_CONVERGED, Posterior, pool_draws
+from ird_core.posterior.run_until import GIVE_UP_R_HAT, RunUntil
 from ird_core.posterior.sampler import (
     DEFAULT_INIT_SCALE,
     DEFAULT_KERNEL,
@@ -44,15 +60,10 @@ from ird_core.posterior.sampler import (
     DEFAULT_WARM_WARMUP,
     DEFAULT_WARMUP,
     DEFAULT_WARMUP_MAX_LEAPFROG,
-    GIVE_UP_R_HAT,
-    R_HAT_CONVERGED,
-    Posterior,
-    RunUntil,
-    laplace_approximation,
-    pool_draws,
     sample_joint_posterior,
     sample_posterior,
 )
+from ird_core.posterior.settings import SamplerSettings
 
 __all__ = [
     "METHODS",
@@ -72,6 +83,10 @@ __all__ = [
     "proxy_prior_samples",
     "proxy_feature_counts",
     "ProxyObservation",
+    "proxy_observation",
+    "proxy_observations",
+    "proxy_feature_expectations",
+    "proxy_prior_features",
     "ChoiceObservation",
     "Observation",
     "ProxyTerm",
@@ -97,6 +112,7 @@ __all__ = [
     "laplace_approximation",
     "Posterior",
     "RunUntil",
+    "SamplerSettings",
     "pool_draws",
     "sample_joint_posterior",
     "sample_posterior",

@@ -43,7 +43,6 @@ from ird_core.checks import check_array, check_int, check_real
 from ird_core.mdp import GridMDP, feature_expectations, log_partition, log_partition_and_feature_expectations
 from ird_core.posterior.likelihoods import (
     DEFAULT_NUM_PROXY_SAMPLES,
-    METHODS,
     RAY_STEP,
     choice_log_likelihood,
     choice_log_likelihood_and_grad,
@@ -56,6 +55,7 @@ from ird_core.posterior.likelihoods import (
     sample_z_log_likelihood,
     sample_z_log_likelihood_and_grad,
 )
+from ird_core.vocabulary import ZMethod, parse
 
 __all__ = [
     "ProxyObservation",
@@ -219,7 +219,7 @@ class PosteriorModel:
         """Unnormalised joint log posterior; ``(K, d) -> (K,)``. One MDP pass per training MDP."""
         total = log_prior(weights, self.prior_sigma)
         for mdp, terms in self._groups:
-            if self.method == "maxent_z":
+            if self.method == ZMethod.MAXENT_Z:
                 log_z = log_partition(mdp, weights)
                 for term in terms:
                     total = total + maxent_z_log_likelihood(weights, term.proxy_features, log_z, self.beta)
@@ -240,7 +240,7 @@ class PosteriorModel:
         grad = log_prior_grad(weights, self.prior_sigma)
         k = len(weights)
         for mdp, terms in self._groups:
-            if self.method == "maxent_z":
+            if self.method == ZMethod.MAXENT_Z:
                 log_z, expectations = log_partition_and_feature_expectations(mdp, weights)
                 for term in terms:
                     value = value + maxent_z_log_likelihood(weights, term.proxy_features, log_z, self.beta)
@@ -306,8 +306,7 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
     """
     items, dim = _check_observations(observations, dim)
     beta = check_real("beta", beta, positive=False)
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    parse(ZMethod, method, "method")
     sigma = check_real("prior_sigma", prior_sigma, positive=True)
     seed = check_int("seed", seed, 0)
     num_proxy_samples = check_int("num_proxy_samples", num_proxy_samples, 1)
@@ -319,7 +318,7 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
         if phi is None:
             phi = _frozen(proxy_feature_counts(obs.train_mdp, obs.proxy_weights))
         phi_i = None
-        if method == "sample_z":
+        if method == ZMethod.SAMPLE_Z:
             phi_i = obs.proxy_sample_features
             if phi_i is None:
                 if samples is None:

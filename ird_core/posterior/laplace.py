@@ -40,10 +40,9 @@ def laplace_approximation(model: PosteriorModel, max_iterations: int = 30
     When Newton stalls far from a stationary point (its line search finds no ascent while the
     Newton decrement is above ``_NEWTON_STALL``) the log density is not smooth at the scale of
     its steps: the Sample-Z likelihood at large beta is a soft maximum over the proxies' feature
-    counts, with creases ~1/beta wide. Measured on latent_raw (15x15, T = 30, d = 50, beta 50,
-    100 proxies) Newton stopped at log density -2.1 near ``w = 0`` while the mode is at +33.4,
-    ``|w| = 0.17``, and chains started there spent their whole run walking out. Then the mode
-    is found by L-BFGS (scipy, exact gradients, ~500 batched one-weight calls) and the covariance
+    counts, with creases ~1/beta wide, and Newton can stop far below the mode (chains started
+    there spend their whole run walking out). Then the mode is found by L-BFGS (scipy, exact
+    gradients, batched one-weight calls) and the covariance
     is rescaled by ``_profile_widths``, since a Hessian at a crease says nothing about how far the
     density extends.
 

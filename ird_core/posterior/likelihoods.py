@@ -54,9 +54,9 @@ _SINGLE_THREAD_GEMM: int = 65536 * 4
 def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a @ b`` for ``(K, m) x (m, n)``, as BLAS calls small enough to stay on one thread.
 
-    A multithreaded gemm oversubscribes a loaded 2-core machine: a ``(16, 50) x (50, 1000)``
-    product measured 0.29-57 ms there with threads against 0.04 ms single-threaded, and the
-    Sample-Z terms do two such products per MCMC step. Splitting the columns keeps every call
+    A multithreaded gemm oversubscribes a loaded machine with few cores (its time becomes
+    erratic and far above the single-threaded one), and the Sample-Z terms do two such products
+    per MCMC step. Splitting the columns keeps every call
     under OpenBLAS's threading threshold whatever ``OPENBLAS_NUM_THREADS`` says.
     """
     k, m = a.shape
@@ -70,8 +70,8 @@ def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def logsumexp_rows(scores: np.ndarray) -> np.ndarray:
     """``scipy.special.logsumexp(scores, axis=1)`` for finite ``scores`` ``(K, n) -> (K,)``, bit
     for bit (the same steps as scipy 1.17's: the maxima are taken out of the sum and added back as
-    ``log1p(rest / count) + log(count) + max``), without scipy's array-API dispatch, which cost
-    0.4 ms a call under the profiler, a quarter of a d = 10 Sample-Z posterior's time."""
+    ``log1p(rest / count) + log(count) + max``), without scipy's array-API dispatch, whose
+    per-call overhead dominates on these small arrays."""
     peak = scores.max(axis=1, keepdims=True)
     at_peak = scores == peak
     count = at_peak.sum(axis=1, keepdims=True, dtype=np.float64)
@@ -190,7 +190,7 @@ def choice_log_likelihood_and_grad(weights: np.ndarray, option_features: np.ndar
     ``beta_c * (f_chosen - sum_k p_k f_k)``, ``p = softmax(beta_c F w)``, ``(K, d)``."""
     scores = _choice_scores(weights, option_features, beta)
     # By hand rather than scipy's logsumexp: this runs once per leapfrog step, where scipy's
-    # per-call overhead (~80 us) is a tenth of a small map's MDP pass.
+    # per-call overhead is not negligible next to a small map's MDP pass.
     peak = scores.max(axis=1, keepdims=True)
     terms = np.exp(scores - peak)
     total = terms.sum(axis=1, keepdims=True)
@@ -199,11 +199,12 @@ def choice_log_likelihood_and_grad(weights: np.ndarray, option_features: np.ndar
     return value, beta * (option_features[chosen][None, :] - p @ option_features)
 
 
-def proxy_prior_samples(num: int, dim: int, prior_sigma: float, seed: int) -> np.ndarray:
-    """``num`` proxies from ``N(0, sigma^2 I)``: ``prior_sigma * default_rng(seed).standard_normal``.
+def proxy_prior_samples(num: int, dim: int, prior_sigma: float, seed: int | np.random.Generator) -> np.ndarray:
+    """``num`` proxies from ``N(0, sigma^2 I)``: ``prior_sigma * default_rng(seed).standard_normal``
+    (a Generator as ``seed`` is used as it is).
 
-    The same draws as ``ird_core.worlds.lavaland.proxy_prior_features(instance, num, seed, sigma)``
-    makes for conditions whose proxy lives in the hypothesis space.
+    The draws of every Sample-Z term: :func:`ird_core.posterior.proxy_observation` plans them in
+    the proxy's space, ``make_joint_model`` in the hypothesis space.
 
     Returns:
         ``(num, dim)``.

@@ -42,10 +42,8 @@ grass -0.2, target 1) are those of the true reward:
   slopes. The intercept is kept in ``proxy_intercept`` for reporting. No ridge term: 3000
   samples in 50 dimensions with full-rank class covariances are well conditioned. The
   fitted values at the safe class means are shrunk towards the grand mean by the within-class
-  noise: (0.128, -0.131, 0.902) for (dirt, grass, target) on average over 20 seeds, each seed
-  within 0.02 of that. The proxy's value on the lava mean is whatever the regression
-  extrapolates to in lava's random direction: mean 0.34, standard deviation 0.48, range -0.68
-  to 1.21 over the same 20 seeds.
+  noise; the proxy's value on the lava mean is whatever the regression extrapolates to in
+  lava's random direction.
 * ``latent_classifier``: the hypothesis space is still linear in the 50-d observations, but the
   proxy is the intended values on the output of the designer's safe-terrain classifier
   (:class:`ird_core.worlds.observations.TerrainClassifier`, QDA fitted on 1000 samples per safe
@@ -54,8 +52,8 @@ grass -0.2, target 1) are those of the true reward:
   under the classifier's belief, identical to the one-hot reward on confidently classified
   cells (almost all safe cells), differentiable in the observations, and it keeps the
   classifier's hedging on ambiguous cells instead of hiding it. Lava has no class; the
-  classifier assigns each lava cell to some safe class, confidently (probability > 0.9) for
-  87% of lava observations, so the proxy values a lava cell like dirt, grass or target.
+  classifier assigns each lava cell to some safe class, mostly confidently, so the proxy
+  values a lava cell like dirt, grass or target.
 
 * ``pot_of_gold`` (docs/spec.md section 7, the paper's own example of what risk aversion gives up):
   indicator features [dirt, grass, target, lava, gold] (d = 5); neither lava nor gold occurs
@@ -67,12 +65,6 @@ grass -0.2, target 1) are those of the true reward:
   on dirt, grass and target, lava ``U(-1, 1)`` and gold ``U(-1, 1)`` (:data:`GOLD_PROXY_RANGE`),
   both arbitrary because the designer never saw them. The proxy therefore always values gold
   below the target (weight < 1), and the literal robot only collects gold lying on its way.
-
-Literal behaviour (the proxy's optimal path on the test map, :func:`ird_core.mdp.optimal_path`,
-100 seeds at the defaults): touches lava in 30% (side_effects), 60% (reward_hacking), 49%
-(latent_raw) and 59% (latent_classifier) of runs; reaches a target in 91%, 79%, 56%, 44%. The
-true-reward-optimal path with lava valued as dirt would cross lava in 40% of the test maps:
-lava is often, not always, in the way.
 
 Seeding: ``make_instance(condition, seed)`` derives independent streams for the training map,
 test map, starts, observation model, classifier, observations, proxy and gold from
@@ -87,17 +79,20 @@ Defaults: 15x15 maps (the team's benchmark), horizon T = 30, one target
 (:data:`ird_core.worlds.terrain.TRAIN_MAP`). The start is at Manhattan distance between
 ``(H + W) // 4`` (7) and ``3 T // 4`` (22) from the target, so the MaxEnt proxy can reach the
 target with slack for detours (any 15x15 cell is at most 28 moves away).
+
+Longer than 450 lines: this docstring is the specification of the five conditions (about 80
+lines); the code (the instance record and one short builder per condition) is under 400.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
-from ird_core import mdp, posterior
-from ird_core.vocabulary import ALL_CONDITIONS, CONDITIONS
+from ird_core import mdp
+from ird_core.vocabulary import ALL_CONDITIONS, CONDITIONS, Condition
 from ird_core.worlds.observations import (
     DEFAULT_DIM,
     ObservationModel,
@@ -114,7 +109,6 @@ from ird_core.worlds.terrain import (
     TRAIN_MAP,
     MapConfig,
     Terrain,
-    as_generator,
     choose_start,
     place_gold,
     sample_terrain,
@@ -136,16 +130,9 @@ __all__ = [
     "TrainingWorld",
     "LavalandInstance",
     "make_instance",
-    "true_return",
-    "touches_lava",
-    "reaches_target",
-    "reaches_gold",
     "train_mdp",
     "test_mdp",
     "proxy_cell_rewards",
-    "proxy_feature_expectations",
-    "proxy_prior_features",
-    "proxy_observations",
 ]
 
 
@@ -213,7 +200,7 @@ class LavalandInstance:
             Lavaland's get labels 5, 6, ...).
         true_terrain_reward: (len(terrain_names),) true reward per label, or None (unknown).
         extra_training_worlds: training worlds after the first (world files); each adds a
-            proxy observation (:func:`proxy_observations`).
+            proxy observation (:func:`ird_core.posterior.proxy_observations`).
     """
 
     condition: str
@@ -317,6 +304,114 @@ def _map_size(size: int | tuple[int, int]) -> tuple[int, int]:
     return height, width
 
 
+class _Streams(NamedTuple):
+    """The independent random streams of an instance, children of ``SeedSequence(seed)``."""
+
+    train_map: np.random.SeedSequence
+    test_map: np.random.SeedSequence
+    train_start: np.random.SeedSequence
+    test_start: np.random.SeedSequence
+    model: np.random.SeedSequence
+    classifier: np.random.SeedSequence
+    observations: np.random.SeedSequence
+    proxy: np.random.SeedSequence
+    gold: np.random.SeedSequence
+
+
+class _Maps(NamedTuple):
+    train_labels: np.ndarray
+    test_labels: np.ndarray
+    train_start: tuple[int, int]
+    test_start: tuple[int, int]
+
+
+class _Features(NamedTuple):
+    """A condition's hypothesis features and proxy: names (d,), train and test features (H, W, d),
+    proxy weights, intercept, the latent conditions' model and classifier, the test labels (gold
+    placed for pot_of_gold)."""
+
+    names: tuple[str, ...]
+    train: np.ndarray
+    test: np.ndarray
+    weights: np.ndarray
+    intercept: float
+    model: ObservationModel | None
+    classifier: TerrainClassifier | None
+    test_labels: np.ndarray
+
+
+def _check_instance_arguments(condition: str, seed: int, horizon: int) -> Condition:
+    """``condition`` as a :class:`Condition`, ``seed`` >= 0 and ``horizon`` >= 1 checked."""
+    if condition not in ALL_CONDITIONS:
+        raise ValueError(f"condition must be one of {ALL_CONDITIONS}, got {condition!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
+        raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
+    return Condition(condition)
+
+
+def _sample_maps(streams: _Streams, train_map: MapConfig, test_map: MapConfig, horizon: int) -> _Maps:
+    """Both maps and their starts, within ``3 T // 4`` moves of a target."""
+    rng = np.random.default_rng
+    train_labels = sample_terrain(train_map, rng(streams.train_map))
+    test_labels = sample_terrain(test_map, rng(streams.test_map))
+    reach = max(1, (3 * int(horizon)) // 4)
+    return _Maps(train_labels, test_labels, choose_start(train_labels, rng(streams.train_start), max_distance=reach),
+                 choose_start(test_labels, rng(streams.test_start), max_distance=reach))
+
+
+def _side_effects(maps: _Maps, streams: _Streams, obs_dim: int) -> _Features:
+    """Indicators of the paper's four terrains; intended safe weights and a ``U(-1, 1)`` lava weight."""
+    lava_weight = np.random.default_rng(streams.proxy).uniform(*LAVA_PROXY_RANGE)
+    return _Features(TERRAIN_NAMES[:_SIDE_EFFECTS_TERRAINS], _one_hot(maps.train_labels, _SIDE_EFFECTS_TERRAINS),
+                     _one_hot(maps.test_labels, _SIDE_EFFECTS_TERRAINS), np.append(INTENDED_SAFE_REWARD, lava_weight),
+                     0.0, None, None, maps.test_labels)
+
+
+def _pot_of_gold(maps: _Maps, streams: _Streams, obs_dim: int) -> _Features:
+    """Gold placed on the test map; indicators of the five terrains; lava and gold weights ``U(-1, 1)``."""
+    rng = np.random.default_rng
+    test_labels = place_gold(maps.test_labels, GOLD_SHARE, rng(streams.gold), exclude=maps.test_start)
+    proxy_rng = rng(streams.proxy)
+    lava_weight = proxy_rng.uniform(*LAVA_PROXY_RANGE)
+    gold_weight = proxy_rng.uniform(*GOLD_PROXY_RANGE)
+    return _Features(TERRAIN_NAMES, _one_hot(maps.train_labels, NUM_TERRAINS), _one_hot(test_labels, NUM_TERRAINS),
+                     np.concatenate([INTENDED_SAFE_REWARD, [lava_weight, gold_weight]]), 0.0, None, None, test_labels)
+
+
+def _reward_hacking(maps: _Maps, streams: _Streams, obs_dim: int) -> _Features:
+    """Two sensors' indicators; each terrain's intended value split ``a, 1 - a`` between them."""
+    split = np.random.default_rng(streams.proxy).uniform(*SENSOR_SPLIT_RANGE, size=len(SAFE_TERRAINS))
+    weights = np.concatenate([split * INTENDED_SAFE_REWARD, (1 - split) * INTENDED_SAFE_REWARD])
+    return _Features(_SENSOR_NAMES, _sensor_features(maps.train_labels), _sensor_features(maps.test_labels), weights,
+                     0.0, None, None, maps.test_labels)
+
+
+def _latent(maps: _Maps, streams: _Streams, obs_dim: int, classified: bool) -> _Features:
+    """Gaussian cell observations; the regression proxy (latent_raw) or the classifier's (latent_classifier)."""
+    rng = np.random.default_rng
+    model = make_observation_model(obs_dim, rng(streams.model))
+    obs_rng = rng(streams.observations)
+    train = sample_observations(model, maps.train_labels, obs_rng)
+    test = sample_observations(model, maps.test_labels, obs_rng)
+    names = tuple(f"obs_{i:02d}" for i in range(model.dim))
+    if not classified:
+        weights, intercept = _regression_proxy(model, rng(streams.proxy))
+        return _Features(names, train, test, weights, intercept, model, None, maps.test_labels)
+    classifier = fit_classifier(model, rng(streams.classifier))
+    return _Features(names, train, test, INTENDED_SAFE_REWARD.copy(), 0.0, model, classifier, maps.test_labels)
+
+
+_CONDITION_FEATURES = {
+    Condition.SIDE_EFFECTS: _side_effects,
+    Condition.POT_OF_GOLD: _pot_of_gold,
+    Condition.REWARD_HACKING: _reward_hacking,
+    Condition.LATENT_RAW: lambda maps, streams, obs_dim: _latent(maps, streams, obs_dim, classified=False),
+    Condition.LATENT_CLASSIFIER: lambda maps, streams, obs_dim: _latent(maps, streams, obs_dim, classified=True),
+}
+
+
 def make_instance(
     condition: str,
     seed: int,
@@ -339,139 +434,26 @@ def make_instance(
     Returns:
         The :class:`LavalandInstance`.
     """
-    if condition not in ALL_CONDITIONS:
-        raise ValueError(f"condition must be one of {ALL_CONDITIONS}, got {condition!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative int, got {seed!r}")
-    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
-        raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
+    kind = _check_instance_arguments(condition, seed, horizon)
     height, width = _map_size(size)
-    train_map = dataclasses.replace(train_map, height=height, width=width)
-    test_map = dataclasses.replace(test_map, height=height, width=width)
-    (
-        seq_train_map,
-        seq_test_map,
-        seq_train_start,
-        seq_test_start,
-        seq_model,
-        seq_classifier,
-        seq_observations,
-        seq_proxy,
-        seq_gold,
-    ) = np.random.SeedSequence(int(seed)).spawn(9)  # the first 8 children equal spawn(8)'s
-    rng = np.random.default_rng
-
-    train_labels = sample_terrain(train_map, rng(seq_train_map))
-    test_labels = sample_terrain(test_map, rng(seq_test_map))
-    reach = max(1, (3 * int(horizon)) // 4)
-    train_start = choose_start(train_labels, rng(seq_train_start), max_distance=reach)
-    test_start = choose_start(test_labels, rng(seq_test_start), max_distance=reach)
-    proxy_rng = rng(seq_proxy)
-
-    model: ObservationModel | None = None
-    classifier: TerrainClassifier | None = None
-    intercept = 0.0
-    if condition == "side_effects":
-        names = TERRAIN_NAMES[:_SIDE_EFFECTS_TERRAINS]
-        train_features = _one_hot(train_labels, _SIDE_EFFECTS_TERRAINS)
-        test_features = _one_hot(test_labels, _SIDE_EFFECTS_TERRAINS)
-        lava_weight = proxy_rng.uniform(*LAVA_PROXY_RANGE)
-        weights = np.append(INTENDED_SAFE_REWARD, lava_weight)
-    elif condition == "pot_of_gold":
-        test_labels = place_gold(test_labels, GOLD_SHARE, rng(seq_gold), exclude=test_start)
-        names = TERRAIN_NAMES
-        train_features = _one_hot(train_labels, NUM_TERRAINS)
-        test_features = _one_hot(test_labels, NUM_TERRAINS)
-        lava_weight = proxy_rng.uniform(*LAVA_PROXY_RANGE)
-        gold_weight = proxy_rng.uniform(*GOLD_PROXY_RANGE)
-        weights = np.concatenate([INTENDED_SAFE_REWARD, [lava_weight, gold_weight]])
-    elif condition == "reward_hacking":
-        names = _SENSOR_NAMES
-        train_features = _sensor_features(train_labels)
-        test_features = _sensor_features(test_labels)
-        split = proxy_rng.uniform(*SENSOR_SPLIT_RANGE, size=len(SAFE_TERRAINS))
-        weights = np.concatenate([split * INTENDED_SAFE_REWARD, (1 - split) * INTENDED_SAFE_REWARD])
-    else:
-        model = make_observation_model(obs_dim, rng(seq_model))
-        names = tuple(f"obs_{i:02d}" for i in range(model.dim))
-        obs_rng = rng(seq_observations)
-        train_features = sample_observations(model, train_labels, obs_rng)
-        test_features = sample_observations(model, test_labels, obs_rng)
-        if condition == "latent_raw":
-            weights, intercept = _regression_proxy(model, proxy_rng)
-        else:
-            classifier = fit_classifier(model, rng(seq_classifier))
-            weights = INTENDED_SAFE_REWARD.copy()
-
-    if classifier is not None:
+    streams = _Streams(*np.random.SeedSequence(int(seed)).spawn(9))  # the first 8 children equal spawn(8)'s
+    maps = _sample_maps(streams, dataclasses.replace(train_map, height=height, width=width),
+                        dataclasses.replace(test_map, height=height, width=width), horizon)
+    parts = _CONDITION_FEATURES[kind](maps, streams, obs_dim)
+    if parts.classifier is not None:
         proxy_names = _CLASSIFIER_NAMES
-        proxy_train = classifier.predict_proba(train_features)
-        proxy_test = classifier.predict_proba(test_features)
+        proxy_train = parts.classifier.predict_proba(parts.train)
+        proxy_test = parts.classifier.predict_proba(parts.test)
     else:
-        proxy_names, proxy_train, proxy_test = names, train_features, test_features
-
+        proxy_names, proxy_train, proxy_test = parts.names, parts.train, parts.test
     return LavalandInstance(
-        condition=condition,
-        seed=int(seed),
-        train_labels=train_labels,
-        test_labels=test_labels,
-        train_start=train_start,
-        test_start=test_start,
-        train_horizon=int(horizon),
-        test_horizon=int(horizon),
-        feature_names=tuple(names),
-        train_features=train_features,
-        test_features=test_features,
-        proxy_feature_names=tuple(proxy_names),
-        proxy_train_features=proxy_train,
-        proxy_test_features=proxy_test,
-        proxy_weights=np.asarray(weights, dtype=np.float64),
-        proxy_intercept=intercept,
-        classifier=classifier,
-        observation_model=model,
+        condition=condition, seed=int(seed), train_labels=maps.train_labels, test_labels=parts.test_labels,
+        train_start=maps.train_start, test_start=maps.test_start, train_horizon=int(horizon),
+        test_horizon=int(horizon), feature_names=tuple(parts.names), train_features=parts.train,
+        test_features=parts.test, proxy_feature_names=tuple(proxy_names), proxy_train_features=proxy_train,
+        proxy_test_features=proxy_test, proxy_weights=np.asarray(parts.weights, dtype=np.float64),
+        proxy_intercept=parts.intercept, classifier=parts.classifier, observation_model=parts.model,
     )
-
-
-def _path_labels(labels: np.ndarray, cells: "list[tuple[int, int]] | np.ndarray") -> np.ndarray:
-    """Terrain labels along a path of (row, col) cells; (n, 2) -> (n,)."""
-    labels = np.asarray(labels)
-    if labels.ndim != 2:
-        raise ValueError(f"labels must be an (H, W) array, got shape {labels.shape}")
-    path = np.asarray(cells, dtype=np.int64)
-    if path.ndim != 2 or path.shape[1] != 2 or path.shape[0] < 1:
-        raise ValueError(f"cells must be a non-empty list of (row, col), got shape {path.shape}")
-    inside = (
-        (path[:, 0] >= 0) & (path[:, 0] < labels.shape[0])
-        & (path[:, 1] >= 0) & (path[:, 1] < labels.shape[1])
-    )
-    if not inside.all():
-        raise ValueError(f"cells: cell {tuple(path[np.argmin(inside)])} is off the map")
-    return labels[path[:, 0], path[:, 1]]
-
-
-def true_return(
-    labels: np.ndarray,
-    cells: "list[tuple[int, int]] | np.ndarray",
-    terrain_reward: np.ndarray = TRUE_TERRAIN_REWARD,
-) -> float:
-    """Sum of the true reward per label (default :data:`TRUE_TERRAIN_REWARD`; a file world's
-    ``instance.true_terrain_reward``) over the path's cells (T + 1 cells, start included)."""
-    return float(np.asarray(terrain_reward)[_path_labels(labels, cells)].sum())
-
-
-def touches_lava(labels: np.ndarray, cells: "list[tuple[int, int]] | np.ndarray") -> bool:
-    """Whether any cell of the path is lava."""
-    return bool(np.any(_path_labels(labels, cells) == Terrain.LAVA))
-
-
-def reaches_target(labels: np.ndarray, cells: "list[tuple[int, int]] | np.ndarray") -> bool:
-    """Whether any cell of the path is a target."""
-    return bool(np.any(_path_labels(labels, cells) == Terrain.TARGET))
-
-
-def reaches_gold(labels: np.ndarray, cells: "list[tuple[int, int]] | np.ndarray") -> bool:
-    """Whether any cell of the path is gold."""
-    return bool(np.any(_path_labels(labels, cells) == Terrain.GOLD))
 
 
 def train_mdp(instance: LavalandInstance, proxy: bool = False) -> mdp.GridMDP:
@@ -496,84 +478,3 @@ def proxy_cell_rewards(instance: LavalandInstance, split: Literal["train", "test
         raise ValueError(f"split must be 'train' or 'test', got {split!r}")
     features = instance.proxy_train_features if split == "train" else instance.proxy_test_features
     return features @ instance.proxy_weights + instance.proxy_intercept
-
-
-def proxy_feature_expectations(instance: LavalandInstance) -> np.ndarray:
-    """The proxy's expected feature counts in the training map, in the hypothesis space.
-
-    The proxy's MaxEnt behaviour is planned on the proxy features (identical to the hypothesis
-    features except for latent_classifier, where it is planned on the classified cells); its
-    expected visits are then contracted with the hypothesis features (the observations), by
-    :func:`ird_core.posterior.proxy_feature_counts`.
-
-    Returns:
-        (d,) = ``E[phi(xi) | proxy]`` over the T + 1 states of the training MDP.
-    """
-    return _proxy_counts(instance, instance.proxy_weights[None])[0]
-
-
-def _proxy_counts(instance: LavalandInstance, weights: np.ndarray) -> np.ndarray:
-    """(K, p) proxy weights -> (K, d) hypothesis-space counts in the training map."""
-    if instance.classifier is None:
-        return posterior.proxy_feature_counts(train_mdp(instance), weights)
-    return posterior.proxy_feature_counts(train_mdp(instance, proxy=True), weights, instance.train_features)
-
-
-def proxy_prior_features(
-    instance: LavalandInstance,
-    num: int,
-    seed: int | np.random.Generator,
-    prior_sigma: float = 1.0,
-) -> np.ndarray:
-    """Expected hypothesis-space feature counts of proxies drawn from the designer's prior.
-
-    For Sample-Z. Proxies are ``N(0, prior_sigma^2 I)`` weights in the proxy feature space
-    (the hypothesis space for the first three conditions, the 3 classifier outputs for
-    latent_classifier), planned in the training map like :func:`proxy_feature_expectations`.
-
-    Args:
-        instance: the Lavaland instance.
-        num: number of proxies (>= 1).
-        seed: int seed or numpy Generator.
-        prior_sigma: prior standard deviation (> 0).
-
-    Returns:
-        (num, d).
-    """
-    if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or num < 1:
-        raise ValueError(f"num must be an integer >= 1, got {num!r}")
-    if not np.isfinite(prior_sigma) or prior_sigma <= 0:
-        raise ValueError(f"prior_sigma must be finite and > 0, got {prior_sigma!r}")
-    rng = as_generator(seed)
-    weights = prior_sigma * rng.standard_normal((int(num), len(instance.proxy_feature_names)))
-    return _proxy_counts(instance, weights)
-
-
-def proxy_observations(
-    instance: LavalandInstance,
-    num_proxy_samples: int | None = None,
-    seed: int = 0,
-    prior_sigma: float = 1.0,
-) -> list[posterior.ProxyObservation]:
-    """One :class:`ird_core.posterior.ProxyObservation` per training world (the first, then
-    ``instance.extra_training_worlds``), for ``posterior.sample_joint_posterior``.
-
-    Args:
-        instance: the instance.
-        num_proxy_samples: if given, each observation carries its Sample-Z counts
-            ``proxy_prior_features(world, num_proxy_samples, seed, prior_sigma)``: the same proxy
-            draws planned in every world (needed when the proxy lives on classifier outputs).
-    """
-    worlds = [TrainingWorld(instance.train_labels, instance.train_features, instance.proxy_train_features,
-                            instance.train_start, instance.train_horizon, instance.proxy_weights)]
-    out = []
-    for world in worlds + list(instance.extra_training_worlds):  # a few worlds, one batched pass each
-        view = dataclasses.replace(instance, train_labels=world.labels, train_features=world.features,
-                                   proxy_train_features=world.proxy_features, train_start=world.start,
-                                   train_horizon=world.horizon, proxy_weights=world.proxy_weights,
-                                   extra_training_worlds=())
-        samples = None if num_proxy_samples is None else proxy_prior_features(view, num_proxy_samples, seed, prior_sigma)
-        out.append(posterior.ProxyObservation(world.proxy_weights, train_mdp(view),
-                                              proxy_features=proxy_feature_expectations(view),
-                                              proxy_sample_features=samples))
-    return out

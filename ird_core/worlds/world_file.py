@@ -49,7 +49,7 @@ Keys:
   ``proxy`` of its own; ``proxy_intercept`` (optional, default 0) a constant per-cell term.
 * ``training_worlds`` (required, >= 1): ``image``, ``start: [row, col]``, ``horizon`` (T >= 1
   moves), optional ``proxy``. Each is one ``ProxyObservation`` (docs/spec.md section 7,
-  :func:`ird_core.worlds.lavaland.proxy_observations`): the first is the instance's ``train_*``,
+  :func:`ird_core.posterior.proxy_observations`): the first is the instance's ``train_*``,
   the others ``extra_training_worlds``.
 * ``test_world`` (required): ``image``, ``start``, ``horizon``.
 
@@ -66,15 +66,17 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import yaml
 from PIL import Image
 
+from ird_core.vocabulary import Condition
 from ird_core.worlds import lavaland
-from ird_core.worlds.observations import ObservationModel, fit_classifier, make_observation_model
-from ird_core.worlds.terrain import NUM_TERRAINS, SAFE_TERRAINS, TERRAIN_NAMES, Terrain
+from ird_core.worlds.file_values import FileErrors, read_colour, read_int, read_vector
+from ird_core.worlds.observations import ObservationModel, TerrainClassifier, fit_classifier, make_observation_model
+from ird_core.worlds.terrain import NUM_TERRAINS, SAFE_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES, Terrain
 
 __all__ = ["FEATURE_TYPES", "PROXY_FEATURES", "WorldFile", "load_world_file", "load_world", "export_instance"]
 
@@ -102,47 +104,7 @@ class WorldFile:
     instance: lavaland.LavalandInstance
 
 
-class _Ctx:
-    """Error messages that name the file."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def fail(self, key: str, problem: str, value: Any) -> ValueError:
-        return ValueError(f"{self.path}: {key}: {problem}, got {value!r}")
-
-    def get(self, mapping: dict, key: str, where: str) -> Any:
-        if not isinstance(mapping, dict) or key not in mapping:
-            raise ValueError(f"{self.path}: {where}{key}: missing required key")
-        return mapping[key]
-
-
-def _int(ctx: _Ctx, value: Any, key: str, minimum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum):
-        raise ctx.fail(key, "must be an integer" + ("" if minimum is None else f" >= {minimum}"), value)
-    return value
-
-
-def _vector(ctx: _Ctx, value: Any, key: str, length: int | None = None) -> np.ndarray:
-    try:
-        out = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ctx.fail(key, "must be a list of numbers", value) from None
-    if out.ndim != 1 or not np.all(np.isfinite(out)) or (length is not None and out.size != length):
-        raise ctx.fail(key, "must be a list of " + (f"{length} " if length is not None else "") + "finite numbers", value)
-    return out
-
-
-def _colour(ctx: _Ctx, value: Any, key: str) -> tuple[int, int, int]:
-    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255:
-        return (value, value, value)
-    if (isinstance(value, list) and len(value) == 3
-            and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255 for v in value)):
-        return (value[0], value[1], value[2])
-    raise ctx.fail(key, "must be [r, g, b] or a grey value, integers in 0..255", value)
-
-
-def _legend(ctx: _Ctx, raw: Any) -> tuple[list[dict], list[int], tuple[str, ...], np.ndarray | None]:
+def _legend(ctx: FileErrors, raw: Any) -> tuple[list[dict], list[int], tuple[str, ...], np.ndarray | None]:
     """-> (entries, label per entry, terrain_names, true reward per label or None)."""
     if not isinstance(raw, list) or not raw:
         raise ctx.fail("terrains", "must be a non-empty list of {name, colour}", raw)
@@ -152,7 +114,7 @@ def _legend(ctx: _Ctx, raw: Any) -> tuple[list[dict], list[int], tuple[str, ...]
         name = ctx.get(entry, "name", f"terrains[{i}].")
         if not isinstance(name, str) or not name or name in names:
             raise ctx.fail(f"terrains[{i}].name", "must be a unique non-empty string", name)
-        colour = _colour(ctx, ctx.get(entry, "colour", f"terrains[{i}]."), f"terrains[{i}].colour")
+        colour = read_colour(ctx, ctx.get(entry, "colour", f"terrains[{i}]."), f"terrains[{i}].colour")
         if colour in colours:
             raise ctx.fail(f"terrains[{i}].colour", "is used by another terrain", entry["colour"])
         names.append(name)
@@ -168,12 +130,12 @@ def _legend(ctx: _Ctx, raw: Any) -> tuple[list[dict], list[int], tuple[str, ...]
     if all(given):
         reward = np.concatenate([lavaland.TRUE_TERRAIN_REWARD, np.zeros(len(custom))])
         for i, (entry, label) in enumerate(zip(raw, labels)):
-            reward[label] = _vector(ctx, [entry["true_reward"]], f"terrains[{i}].true_reward", 1)[0]
+            reward[label] = read_vector(ctx, [entry["true_reward"]], f"terrains[{i}].true_reward", 1)[0]
         reward.setflags(write=False)
     return raw, labels, terrain_names, reward
 
 
-def _read_image(ctx: _Ctx, base: Path, value: Any, key: str, legend: list[dict], labels: list[int]) -> np.ndarray:
+def _read_image(ctx: FileErrors, base: Path, value: Any, key: str, legend: list[dict], labels: list[int]) -> np.ndarray:
     """Image file -> (H, W) int8 labels, row 0 = the image's bottom row."""
     if not isinstance(value, str) or not value:
         raise ctx.fail(key, "must be an image file name", value)
@@ -185,7 +147,7 @@ def _read_image(ctx: _Ctx, base: Path, value: Any, key: str, legend: list[dict],
         raise ctx.fail(key, f"cannot read the image ({exc})", value) from None
     codes = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
     legend_codes = np.array([(c[0] << 16) | (c[1] << 8) | c[2]
-                             for c in (_colour(ctx, e["colour"], "") for e in legend)])
+                             for c in (read_colour(ctx, e["colour"], "") for e in legend)])
     order = np.argsort(legend_codes)
     pos = np.clip(np.searchsorted(legend_codes[order], codes), 0, len(order) - 1)
     known = legend_codes[order][pos] == codes
@@ -197,11 +159,11 @@ def _read_image(ctx: _Ctx, base: Path, value: Any, key: str, legend: list[dict],
     return np.asarray(labels, dtype=np.int8)[order][pos][::-1].copy()
 
 
-def _gaussians(ctx: _Ctx, spec: dict, legend: list[dict], labels: list[int], num_labels: int):
+def _gaussians(ctx: FileErrors, spec: dict, legend: list[dict], labels: list[int], num_labels: int):
     """-> (means (L, D), cholesky (L, D, D) per label (NaN where unused), model or None, rng seed)."""
     if "lavaland_seed" in spec:
-        seed = _int(ctx, spec["lavaland_seed"], "features.lavaland_seed", 0)
-        dim = _int(ctx, ctx.get(spec, "dim", "features."), "features.dim", 3)
+        seed = read_int(ctx, spec["lavaland_seed"], "features.lavaland_seed", 0)
+        dim = read_int(ctx, ctx.get(spec, "dim", "features."), "features.dim", 3)
         for i, entry in enumerate(legend):
             if entry["name"] not in _LATENT_TERRAINS:
                 raise ctx.fail(f"terrains[{i}].name", f"lavaland_seed models only {list(_LATENT_TERRAINS)}", entry["name"])
@@ -211,11 +173,11 @@ def _gaussians(ctx: _Ctx, spec: dict, legend: list[dict], labels: list[int], num
         chol = np.full((num_labels, dim, dim), np.nan)
         means[: len(_LATENT_TERRAINS)], chol[: len(_LATENT_TERRAINS)] = model.means, model.cholesky
         return means, chol, model, seqs[_SEQ_OBSERVATIONS], seqs[_SEQ_CLASSIFIER], seed
-    obs_seed = _int(ctx, spec.get("observation_seed", 0), "features.observation_seed", 0)
+    obs_seed = read_int(ctx, spec.get("observation_seed", 0), "features.observation_seed", 0)
     dim = None
     means = chol = None
     for i, entry in enumerate(legend):
-        mean = _vector(ctx, ctx.get(entry, "mean", f"terrains[{i}]."), f"terrains[{i}].mean", dim)
+        mean = read_vector(ctx, ctx.get(entry, "mean", f"terrains[{i}]."), f"terrains[{i}].mean", dim)
         if means is None:
             dim = mean.size
             means, chol = np.full((num_labels, dim), np.nan), np.full((num_labels, dim, dim), np.nan)
@@ -237,7 +199,7 @@ def _gaussians(ctx: _Ctx, spec: dict, legend: list[dict], labels: list[int], num
     if sorted(e["name"] for e in legend) == sorted(_LATENT_TERRAINS):
         k = len(_LATENT_TERRAINS)
         model = ObservationModel(means=means[:k], covariances=chol[:k] @ np.swapaxes(chol[:k], 1, 2))
-    classifier_seed = _int(ctx, spec.get("classifier_seed", 0), "features.classifier_seed", 0)
+    classifier_seed = read_int(ctx, spec.get("classifier_seed", 0), "features.classifier_seed", 0)
     return means, chol, model, np.random.SeedSequence(obs_seed), classifier_seed, obs_seed
 
 
@@ -251,47 +213,56 @@ def _sample(means: np.ndarray, chol: np.ndarray, labels: np.ndarray, rng: np.ran
     return out
 
 
-def load_world_file(path: str | os.PathLike) -> WorldFile:
-    """Load and validate a world file (see the module docstring); ValueError on any bad value."""
-    path = Path(path)
-    ctx = _Ctx(path)
+def _read_document(ctx: FileErrors) -> dict:
+    """The YAML mapping of the file."""
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = yaml.safe_load(ctx.path.read_text())
     except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: cannot read the world file ({exc})") from None
+        raise ValueError(f"{ctx.path}: cannot read the world file ({exc})") from None
     if not isinstance(doc, dict):
         raise ctx.fail("(top level)", "must be a mapping of keys", doc)
-    resolution = doc.get("resolution", 1.0)
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or not resolution > 0:
-        raise ctx.fail("resolution", "must be a number > 0", resolution)
-    origin = _vector(ctx, doc.get("origin", [0.0, 0.0, 0.0]), "origin", 3)
-    name = doc.get("name", path.stem)
-    legend, labels, terrain_names, true_reward = _legend(ctx, ctx.get(doc, "terrains", ""))
+    return doc
 
+
+class _Worlds(NamedTuple):
+    """The training worlds then the test world: their keys and mappings, label maps, starts, horizons."""
+
+    keyed: list[tuple[str, Any]]
+    maps: list[np.ndarray]
+    starts: list[tuple[int, int]]
+    horizons: list[int]
+
+
+def _read_worlds(ctx: FileErrors, doc: dict, legend: list[dict], labels: list[int]) -> _Worlds:
+    """``training_worlds`` then ``test_world``: images of one size, starts on the map, horizons >= 1."""
     raw_worlds = ctx.get(doc, "training_worlds", "")
     if not isinstance(raw_worlds, list) or not raw_worlds:
         raise ctx.fail("training_worlds", "must be a non-empty list of worlds", raw_worlds)
     keyed = [(f"training_worlds[{i}]", w) for i, w in enumerate(raw_worlds)]
     keyed.append(("test_world", ctx.get(doc, "test_world", "")))
-    maps, starts, horizons = [], [], []
+    out = _Worlds(keyed, [], [], [])
     for key, world in keyed:
         if not isinstance(world, dict):
             raise ctx.fail(key, "must be a mapping with image, start, horizon", world)
         image_key = f"{key}.image"
-        grid = _read_image(ctx, path.parent, ctx.get(world, "image", f"{key}."), image_key, legend, labels)
-        if maps and grid.shape != maps[0].shape:
+        grid = _read_image(ctx, ctx.path.parent, ctx.get(world, "image", f"{key}."), image_key, legend, labels)
+        if out.maps and grid.shape != out.maps[0].shape:
             raise ctx.fail(image_key, f"{world['image']} is {grid.shape[1]}x{grid.shape[0]} (W x H) but "
-                           f"{keyed[0][1]['image']} is {maps[0].shape[1]}x{maps[0].shape[0]}", world["image"])
+                           f"{keyed[0][1]['image']} is {out.maps[0].shape[1]}x{out.maps[0].shape[0]}", world["image"])
         start = ctx.get(world, "start", f"{key}.")
         if (not isinstance(start, list) or len(start) != 2
                 or not all(isinstance(v, int) and not isinstance(v, bool) for v in start)):
             raise ctx.fail(f"{key}.start", "must be [row, col] integers", start)
         if not (0 <= start[0] < grid.shape[0] and 0 <= start[1] < grid.shape[1]):
             raise ctx.fail(f"{key}.start", f"is off the {grid.shape[0]}x{grid.shape[1]} (H x W) map", start)
-        maps.append(grid)
-        starts.append((start[0], start[1]))
-        horizons.append(_int(ctx, ctx.get(world, "horizon", f"{key}."), f"{key}.horizon", 1))
+        out.maps.append(grid)
+        out.starts.append((start[0], start[1]))
+        out.horizons.append(read_int(ctx, ctx.get(world, "horizon", f"{key}."), f"{key}.horizon", 1))
+    return out
 
+
+def _feature_kinds(ctx: FileErrors, doc: dict) -> tuple[dict, str, str]:
+    """``features`` (its mapping and type) and ``proxy_features``, checked."""
     spec = doc.get("features", {"type": "indicator"})
     if not isinstance(spec, dict) or spec.get("type", "indicator") not in FEATURE_TYPES:
         raise ctx.fail("features.type", f"must be one of {list(FEATURE_TYPES)}", spec)
@@ -300,63 +271,107 @@ def load_world_file(path: str | os.PathLike) -> WorldFile:
     if proxy_kind not in PROXY_FEATURES or (proxy_kind == "classifier" and kind != "gaussian"):
         raise ctx.fail("proxy_features", f"must be one of {list(PROXY_FEATURES)} (classifier needs gaussian features)",
                        proxy_kind)
-    num_labels = len(terrain_names)
-    model = classifier = None
-    seed = 0
+    return spec, kind, proxy_kind
+
+
+def _label_table(ctx: FileErrors, spec: dict, kind: str, legend: list[dict], labels: list[int], num_labels: int
+                 ) -> tuple[tuple[str, ...], np.ndarray]:
+    """Feature names and the ``(labels, d)`` feature table of ``indicator`` or ``table`` features."""
+    if kind == "indicator":
+        table = np.zeros((num_labels, len(legend)))
+        table[labels, np.arange(len(legend))] = 1.0
+        return tuple(e["name"] for e in legend), table
+    names = ctx.get(spec, "names", "features.")
+    if (not isinstance(names, list) or not names or not all(isinstance(n, str) and n for n in names)
+            or len(set(names)) != len(names)):
+        raise ctx.fail("features.names", "must be a list of unique non-empty names", names)
+    table = np.zeros((num_labels, len(names)))
+    for i, entry in enumerate(legend):
+        table[labels[i]] = read_vector(ctx, ctx.get(entry, "features", f"terrains[{i}]."), f"terrains[{i}].features",
+                                   len(names))
+    return tuple(names), table
+
+
+class _Features(NamedTuple):
+    """Every world's ``(H, W, d)`` features, their names, and for gaussian features the
+    observation model, the classifier's seed and the file's default seed."""
+
+    maps: list[np.ndarray]
+    names: tuple[str, ...]
+    model: "ObservationModel | None"
+    classifier_seed: Any
+    seed: int
+
+
+def _features(ctx: FileErrors, spec: dict, kind: str, legend: list[dict], labels: list[int], num_labels: int,
+              maps: list[np.ndarray]) -> _Features:
+    """The hypothesis features of every map (training worlds, then test)."""
     if kind == "gaussian":
         means, chol, model, obs_seq, clf_seed, seed = _gaussians(ctx, spec, legend, labels, num_labels)
         rng = np.random.default_rng(obs_seq)
         features = [_sample(means, chol, grid, rng) for grid in maps]  # training worlds, then test
-        feature_names = tuple(f"obs_{i:02d}" for i in range(means.shape[1]))
-    else:
-        if kind == "indicator":
-            feature_names = tuple(e["name"] for e in legend)
-            table = np.zeros((num_labels, len(legend)))
-            table[labels, np.arange(len(legend))] = 1.0
-        else:
-            feature_names = ctx.get(spec, "names", "features.")
-            if (not isinstance(feature_names, list) or not feature_names
-                    or not all(isinstance(n, str) and n for n in feature_names)
-                    or len(set(feature_names)) != len(feature_names)):
-                raise ctx.fail("features.names", "must be a list of unique non-empty names", feature_names)
-            feature_names = tuple(feature_names)
-            table = np.zeros((num_labels, len(feature_names)))
-            for i, entry in enumerate(legend):
-                table[labels[i]] = _vector(ctx, ctx.get(entry, "features", f"terrains[{i}]."),
-                                           f"terrains[{i}].features", len(feature_names))
-        features = [table[grid] for grid in maps]
-    if proxy_kind == "classifier":
-        if model is None:
-            raise ctx.fail("proxy_features", f"classifier needs gaussian terrains exactly {list(_LATENT_TERRAINS)}",
-                           [e["name"] for e in legend])
-        classifier = fit_classifier(model, np.random.default_rng(clf_seed))
-        proxy_names = tuple(f"clf_{TERRAIN_NAMES[t]}" for t in SAFE_TERRAINS)
-        proxy_maps = [classifier.predict_proba(f) for f in features]
-    else:
-        proxy_names, proxy_maps = feature_names, features
+        return _Features(features, tuple(f"obs_{i:02d}" for i in range(means.shape[1])), model, clf_seed, seed)
+    names, table = _label_table(ctx, spec, kind, legend, labels, num_labels)
+    return _Features([table[grid] for grid in maps], names, None, None, 0)
+
+
+def _proxy_space(ctx: FileErrors, proxy_kind: str, features: _Features, legend: list[dict]
+                 ) -> tuple["TerrainClassifier | None", tuple[str, ...], list[np.ndarray]]:
+    """The classifier (or None), the proxy's feature names and every map's proxy features."""
+    if proxy_kind != "classifier":
+        return None, features.names, features.maps
+    if features.model is None:
+        raise ctx.fail("proxy_features", f"classifier needs gaussian terrains exactly {list(_LATENT_TERRAINS)}",
+                       [e["name"] for e in legend])
+    classifier = fit_classifier(features.model, np.random.default_rng(features.classifier_seed))
+    names = tuple(f"clf_{TERRAIN_NAMES[t]}" for t in SAFE_TERRAINS)
+    return classifier, names, [classifier.predict_proba(f) for f in features.maps]
+
+
+def _proxies(ctx: FileErrors, doc: dict, keyed: list[tuple[str, Any]], num_proxy_features: int) -> list[np.ndarray]:
+    """Each training world's proxy weights: its own ``proxy``, else the top-level one."""
     default_proxy = doc.get("proxy")
     proxies = []
     for key, world in keyed[:-1]:
         if "proxy" in world:
-            proxies.append(_vector(ctx, world["proxy"], f"{key}.proxy", len(proxy_names)))
+            proxies.append(read_vector(ctx, world["proxy"], f"{key}.proxy", num_proxy_features))
         elif default_proxy is not None:
-            proxies.append(_vector(ctx, default_proxy, "proxy", len(proxy_names)))
+            proxies.append(read_vector(ctx, default_proxy, "proxy", num_proxy_features))
         else:
-            raise ValueError(f"{path}: {key}.proxy: missing required key (or give a top-level proxy)")
-    seed = _int(ctx, doc.get("seed", seed), "seed", 0)
+            raise ValueError(f"{ctx.path}: {key}.proxy: missing required key (or give a top-level proxy)")
+    return proxies
+
+
+def load_world_file(path: str | os.PathLike) -> WorldFile:
+    """Load and validate a world file (see the module docstring); ValueError on any bad value."""
+    path = Path(path)
+    ctx = FileErrors(path)
+    doc = _read_document(ctx)
+    resolution = doc.get("resolution", 1.0)
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or not resolution > 0:
+        raise ctx.fail("resolution", "must be a number > 0", resolution)
+    origin = read_vector(ctx, doc.get("origin", [0.0, 0.0, 0.0]), "origin", 3)
+    name = doc.get("name", path.stem)
+    legend, labels, terrain_names, true_reward = _legend(ctx, ctx.get(doc, "terrains", ""))
+    worlds = _read_worlds(ctx, doc, legend, labels)
+    spec, kind, proxy_kind = _feature_kinds(ctx, doc)
+    features = _features(ctx, spec, kind, legend, labels, len(terrain_names), worlds.maps)
+    classifier, proxy_names, proxy_maps = _proxy_space(ctx, proxy_kind, features, legend)
+    proxies = _proxies(ctx, doc, worlds.keyed, len(proxy_names))
+    seed = read_int(ctx, doc.get("seed", features.seed), "seed", 0)
     intercept = doc.get("proxy_intercept", 0.0)
     if isinstance(intercept, bool) or not isinstance(intercept, (int, float)) or not np.isfinite(intercept):
         raise ctx.fail("proxy_intercept", "must be a finite number", intercept)
-
-    extra = tuple(lavaland.TrainingWorld(maps[i], features[i], proxy_maps[i], starts[i], horizons[i], proxies[i])
-                  for i in range(1, len(raw_worlds)))
+    maps, starts, horizons, feature_maps = worlds.maps, worlds.starts, worlds.horizons, features.maps
+    extra = tuple(lavaland.TrainingWorld(maps[i], feature_maps[i], proxy_maps[i], starts[i], horizons[i], proxies[i])
+                  for i in range(1, len(worlds.keyed) - 1))
     instance = lavaland.LavalandInstance(
         condition=lavaland.FILE_CONDITION, seed=seed,
         train_labels=maps[0], test_labels=maps[-1], train_start=starts[0], test_start=starts[-1],
-        train_horizon=horizons[0], test_horizon=horizons[-1], feature_names=feature_names,
-        train_features=features[0], test_features=features[-1], proxy_feature_names=proxy_names,
+        train_horizon=horizons[0], test_horizon=horizons[-1], feature_names=features.names,
+        train_features=feature_maps[0], test_features=feature_maps[-1], proxy_feature_names=proxy_names,
         proxy_train_features=proxy_maps[0], proxy_test_features=proxy_maps[-1], proxy_weights=proxies[0],
-        proxy_intercept=float(intercept), classifier=classifier, observation_model=model,
+        proxy_intercept=float(intercept), classifier=classifier, observation_model=features.model,
         terrain_names=terrain_names, true_terrain_reward=true_reward, extra_training_worlds=extra,
     )
     return WorldFile(path, str(name), float(resolution), tuple(float(v) for v in origin), instance)
@@ -391,20 +406,18 @@ def export_instance(instance: lavaland.LavalandInstance, directory: str | os.Pat
     Returns:
         The YAML path.
     """
-    from ird_core.render import TERRAIN_COLORS  # matplotlib only for the palette
-
     condition = instance.condition
     if condition not in lavaland.ALL_CONDITIONS:
         raise ValueError(f"instance.condition: only generated Lavaland instances can be exported, got {condition!r}")
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    present = NUM_TERRAINS if condition == "pot_of_gold" else len(_LATENT_TERRAINS)
+    present = NUM_TERRAINS if condition == Condition.POT_OF_GOLD else len(_LATENT_TERRAINS)
     colours = {t: _hex_rgb(TERRAIN_COLORS[t]) for t in range(present)}
     terrains: list[dict] = [{"name": TERRAIN_NAMES[t], "colour": colours[t],
                              "true_reward": float(lavaland.TRUE_TERRAIN_REWARD[t])} for t in range(present)]
-    if condition in ("side_effects", "pot_of_gold"):
+    if condition in (Condition.SIDE_EFFECTS, Condition.POT_OF_GOLD):
         features: dict = {"type": "indicator"}
-    elif condition == "reward_hacking":
+    elif condition == Condition.REWARD_HACKING:
         features = {"type": "vectors", "names": list(instance.feature_names)}
         vectors = lavaland._sensor_features(np.arange(present, dtype=np.int8)[None])[0]
         for t, entry in enumerate(terrains):

@@ -1,15 +1,11 @@
-"""Analysis of the stack's rosbag2 (MCAP) bags without ROS, and the old import path of its parts.
+"""Analysis of the stack's rosbag2 (MCAP) bags without ROS: ``analyze(bag, out_dir)`` is the whole
+analysis behind ``scripts/analyze_bag.py``: the per-topic summary, Rob's missions with their
+outcomes, per-label statistics, the designer's question rounds and (with ``out_dir``) PNG plots.
 
-``analyze(bag, out_dir)`` is the whole analysis behind ``scripts/analyze_bag.py``: the
-per-topic summary, Rob's missions with their outcomes, per-label statistics and (with
-``out_dir``) PNG plots. The work is done by three modules, re-exported here so that
-``from ird_ros.bags.analysis import ...`` keeps working:
-
-- :mod:`ird_ros.bags.storage`: the ``rosbags`` typestore (Jazzy + the repository's ``ird_msgs``),
-  decoded messages, per-topic summary.
-- :mod:`ird_ros.bags.missions`: pure mission segmentation on decoded messages (no ROS, no
-  rosbags), the small decoders and the label statistics.
-- :mod:`ird_ros.bags.plots`: the matplotlib plots.
+The work is done by the modules it composes (import their names from them):
+:mod:`ird_ros.bags.storage` (the ``rosbags`` typestore, decoded messages, per-topic summary),
+:mod:`ird_ros.bags.missions` (mission segmentation and the small decoders, no rosbags),
+:mod:`ird_ros.bags.rounds` (question rounds) and :mod:`ird_ros.bags.plots` (the matplotlib plots).
 """
 
 from __future__ import annotations
@@ -20,21 +16,6 @@ from typing import Any
 
 from rosbags.typesys.store import Typestore
 
-from ird_ros.graph import names
-from ird_ros.bags.storage import (
-    REPO_MSG_ROOT,
-    BagMessage,
-    TopicSummary,
-    find_msg_files,
-    iter_messages,
-    make_typestore,
-    msg_types_from_files,
-    read_messages,
-    referenced_types,
-    register_type,
-    summarize,
-)
-from ird_ros.bags.plots import plot_posterior, plot_query_rounds, plot_returns, plot_trajectories
 from ird_ros.bags.missions import (
     MISSION_TOPICS,
     Mission,
@@ -42,44 +23,14 @@ from ird_ros.bags.missions import (
     label_statistics,
     latest_before,
     missions_from_messages,
-    odom_xy,
-    path_cells,
-    path_xy,
-    polyline_length,
-    stamp_ns,
     terrain_from_msg,
 )
+from ird_ros.bags.plots import plot_posterior, plot_query_rounds, plot_returns, plot_trajectories
 from ird_ros.bags.rounds import Round, event_from_msg, round_summary, rounds_from_events
+from ird_ros.bags.storage import BagMessage, TopicSummary, make_typestore, read_messages, summarize
+from ird_ros.graph import names
 
-__all__ = [
-    "REPO_MSG_ROOT",
-    "BagMessage",
-    "TopicSummary",
-    "Mission",
-    "Terrain",
-    "find_msg_files",
-    "msg_types_from_files",
-    "make_typestore",
-    "register_type",
-    "referenced_types",
-    "iter_messages",
-    "read_messages",
-    "summarize",
-    "extract_missions",
-    "label_statistics",
-    "latest_before",
-    "terrain_from_msg",
-    "path_xy",
-    "path_cells",
-    "odom_xy",
-    "polyline_length",
-    "stamp_ns",
-    "plot_trajectories",
-    "plot_returns",
-    "plot_posterior",
-    "extract_query_rounds",
-    "analyze",
-]
+__all__ = ["extract_missions", "extract_query_rounds", "analyze"]
 
 
 def extract_missions(bag: str | Path, messages: dict[str, list[BagMessage]] | None = None) -> list[Mission]:
@@ -122,68 +73,77 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
     lasts = [t.last_ns for t in topics if t.last_ns is not None]
     start_ns = min(firsts) if firsts else 0
     end_ns = max(lasts) if lasts else 0
-
     plots: list[str] = []
     if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        terrains = messages.get(names.TOPIC_TERRAIN, [])
-        groups: dict[int, list[Mission]] = defaultdict(list)
-        for m in missions:
-            tidx = latest_before(terrains, m.start_ns)
-            groups[-1 if tidx is None else tidx].append(m)
-        if not missions and terrains:
-            groups[len(terrains) - 1] = []
-        for n, (tidx, ms) in enumerate(sorted(groups.items())):
-            terrain = terrain_from_msg(terrains[tidx].msg) if tidx >= 0 else None
-            title = f"Rob's trajectories on terrain #{tidx}" if tidx >= 0 else "Rob's trajectories"
-            plots.append(str(plot_trajectories(ms, terrain, out / f"trajectories_{n}.png", title)))
-        if any(len(m.status_returns) for m in missions):
-            plots.append(str(plot_returns(missions, start_ns, out / "true_return.png")))
-        if messages.get(names.TOPIC_POSTERIOR):
-            plots.append(str(plot_posterior(messages[names.TOPIC_POSTERIOR][-1].msg, out / "posterior.png")))
-        if rounds:
-            plots.append(str(plot_query_rounds(rounds, rounds_terrain, out / "query_rounds.png")))
-
+        plots = _write_plots(Path(out_dir), messages, missions, rounds, rounds_terrain, start_ns)
     return {
         "bag": str(bag),
         "start_ns": start_ns,
         "end_ns": end_ns,
         "duration_s": (end_ns - start_ns) / 1e9,
-        "topics": [
-            {
-                "topic": t.topic,
-                "type": t.msgtype,
-                "count": t.count,
-                "first_s": None if t.first_ns is None else (t.first_ns - start_ns) / 1e9,
-                "last_s": None if t.last_ns is None else (t.last_ns - start_ns) / 1e9,
-                "rate_hz": t.rate_hz,
-                "durability": t.durability,
-            }
-            for t in topics
-        ],
-        "missions": [
-            {
-                "index": m.index,
-                "label": m.label,
-                "mode": m.mode,
-                "baseline": m.baseline,
-                "objective": m.objective,
-                "start_s": (m.start_ns - start_ns) / 1e9,
-                "plan_moves": m.plan_moves,
-                "plan_length_m": m.plan_length_m,
-                "executed_length_m": m.executed_length_m,
-                "executed_moves": m.executed_moves,
-                "steps": m.steps,
-                "horizon": m.horizon,
-                "done": m.done,
-                "touched_lava": m.touched_lava,
-                "reached_target": m.reached_target,
-                "true_return": m.true_return,
-            }
-            for m in missions
-        ],
+        "topics": [_topic_row(t, start_ns) for t in topics],
+        "missions": [_mission_row(m, start_ns) for m in missions],
         "labels": label_statistics(missions),
         "query_rounds": [round_summary(r, start_ns) for r in rounds],
         "plots": plots,
+    }
+
+
+def _write_plots(out: Path, messages: dict[str, list[BagMessage]], missions: list[Mission], rounds: list[Round],
+                 rounds_terrain: Terrain | None, start_ns: int) -> list[str]:
+    """The PNG plots of :func:`analyze` in ``out``; their paths."""
+    out.mkdir(parents=True, exist_ok=True)
+    plots: list[str] = []
+    terrains = messages.get(names.TOPIC_TERRAIN, [])
+    groups: dict[int, list[Mission]] = defaultdict(list)
+    for m in missions:
+        tidx = latest_before(terrains, m.start_ns)
+        groups[-1 if tidx is None else tidx].append(m)
+    if not missions and terrains:
+        groups[len(terrains) - 1] = []
+    for n, (tidx, ms) in enumerate(sorted(groups.items())):
+        terrain = terrain_from_msg(terrains[tidx].msg) if tidx >= 0 else None
+        title = f"Rob's trajectories on terrain #{tidx}" if tidx >= 0 else "Rob's trajectories"
+        plots.append(str(plot_trajectories(ms, terrain, out / f"trajectories_{n}.png", title)))
+    if any(len(m.status_returns) for m in missions):
+        plots.append(str(plot_returns(missions, start_ns, out / "true_return.png")))
+    if messages.get(names.TOPIC_POSTERIOR):
+        plots.append(str(plot_posterior(messages[names.TOPIC_POSTERIOR][-1].msg, out / "posterior.png")))
+    if rounds:
+        plots.append(str(plot_query_rounds(rounds, rounds_terrain, out / "query_rounds.png")))
+    return plots
+
+
+def _topic_row(t: TopicSummary, start_ns: int) -> dict[str, Any]:
+    """A topic of the summary as a JSON-able row (times in s since ``start_ns``)."""
+    return {
+        "topic": t.topic,
+        "type": t.msgtype,
+        "count": t.count,
+        "first_s": None if t.first_ns is None else (t.first_ns - start_ns) / 1e9,
+        "last_s": None if t.last_ns is None else (t.last_ns - start_ns) / 1e9,
+        "rate_hz": t.rate_hz,
+        "durability": t.durability,
+    }
+
+
+def _mission_row(m: Mission, start_ns: int) -> dict[str, Any]:
+    """A mission as a JSON-able row (its start in s since ``start_ns``)."""
+    return {
+        "index": m.index,
+        "label": m.label,
+        "mode": m.mode,
+        "baseline": m.baseline,
+        "objective": m.objective,
+        "start_s": (m.start_ns - start_ns) / 1e9,
+        "plan_moves": m.plan_moves,
+        "plan_length_m": m.plan_length_m,
+        "executed_length_m": m.executed_length_m,
+        "executed_moves": m.executed_moves,
+        "steps": m.steps,
+        "horizon": m.horizon,
+        "done": m.done,
+        "touched_lava": m.touched_lava,
+        "reached_target": m.reached_target,
+        "true_return": m.true_return,
     }

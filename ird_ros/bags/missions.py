@@ -17,7 +17,7 @@ its plan (or first status) to the next mission's start. A bag without ``/rob/sta
 one mission per ``/plan`` (plans only, no outcome).
 
 Also here: the small decoders the analysis needs (``terrain_from_msg``, ``path_xy``,
-``odom_xy``, ``stamp_ns``) and ``label_statistics`` (per plan label: runs, lava and target
+``odom_xy``) and ``label_statistics`` (per plan label: runs, lava and target
 fractions, mean true return).
 """
 
@@ -32,7 +32,8 @@ from typing import Any, Mapping, Protocol, Sequence
 import numpy as np
 
 from ird_ros.graph import names
-from ird_ros.conversions.geometry import point_cells
+from ird_ros.geometry import point_cells
+from ird_ros.stamps import stamp_ns
 
 __all__ = [
     "MISSION_TOPICS",
@@ -47,7 +48,6 @@ __all__ = [
     "path_cells",
     "odom_xy",
     "polyline_length",
-    "stamp_ns",
 ]
 
 MISSION_TOPICS: tuple[str, ...] = (names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_ROB_STATUS, names.TOPIC_ODOM)
@@ -101,11 +101,6 @@ def terrain_from_msg(msg: Any) -> Terrain:
         resolution=float(msg.info.resolution),
         origin=(float(msg.info.origin.position.x), float(msg.info.origin.position.y)),
     )
-
-
-def stamp_ns(stamp: Any) -> int:
-    """A ``builtin_interfaces/Time`` in ns."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def path_xy(msg: Any) -> np.ndarray:
@@ -238,56 +233,61 @@ def missions_from_messages(messages: Mapping[str, Sequence[Logged]]) -> list[Mis
     Reads :data:`MISSION_TOPICS`; a missing topic counts as empty.
     """
     plans = messages.get(names.TOPIC_PLAN, [])
-    infos = messages.get(names.TOPIC_PLAN_INFO, [])
     statuses = messages.get(names.TOPIC_ROB_STATUS, [])
-    odoms = messages.get(names.TOPIC_ODOM, [])
-
-    missions: list[Mission] = []
     if statuses:
-        used_plans: set[int] = set()
-        for group in _segment_statuses(statuses):
-            first_t = group[0].timestamp
-            # the latest /plan at or before the first status that no earlier mission took
-            plan_idx = None
-            for i, p in enumerate(plans):
-                if p.timestamp <= first_t and i not in used_plans:
-                    plan_idx = i
-            if plan_idx is not None:
-                used_plans.update(range(plan_idx + 1))
-            last = group[-1].msg
-            mission = Mission(
-                index=len(missions),
-                label=str(last.plan_label),
-                start_ns=min(first_t, plans[plan_idx].timestamp) if plan_idx is not None else first_t,
-                end_ns=group[-1].timestamp,
-                steps=int(last.step),
-                horizon=int(last.horizon),
-                done=bool(last.done),
-                touched_lava=bool(last.touched_lava),
-                reached_target=bool(last.reached_target),
-                true_return=float(last.true_return),
-                final_terrain=str(last.terrain),
-                status_returns=np.array([[s.timestamp, s.msg.true_return] for s in group], dtype=float),
-                executed_cells=[],
-            )
-            # Rob's cell per executed step (the last status of each step wins)
-            steps_seen: dict[int, tuple[int, int]] = {}
-            for s in group:
-                steps_seen[int(s.msg.step)] = (int(s.msg.row), int(s.msg.col))
-            mission.executed_cells = [steps_seen[k] for k in sorted(steps_seen)]
-            if plan_idx is not None:
-                mission.plan_ns = plans[plan_idx].timestamp
-                mission.plan_xy = path_xy(plans[plan_idx].msg)
-            missions.append(mission)
+        missions = _status_missions(statuses, plans)
     else:
-        for p in plans:
-            missions.append(
-                Mission(index=len(missions), label="", start_ns=p.timestamp, end_ns=p.timestamp,
-                        plan_ns=p.timestamp, plan_xy=path_xy(p.msg))
-            )
+        missions = [Mission(index=i, label="", start_ns=p.timestamp, end_ns=p.timestamp, plan_ns=p.timestamp,
+                            plan_xy=path_xy(p.msg)) for i, p in enumerate(plans)]
+    _attach_plan_infos(missions, plans, messages.get(names.TOPIC_PLAN_INFO, []))
+    _attach_odometry(missions, messages.get(names.TOPIC_ODOM, []))
+    return missions
 
-    # the plan's /ird/plan_info: same header stamp as the /plan message, else the latest
-    # one logged at or before the plan (or the mission start)
+
+def _status_missions(statuses: Sequence[Logged], plans: Sequence[Logged]) -> list[Mission]:
+    """One mission per segment of ``/rob/status``, each with the plan it executed (if logged)."""
+    missions: list[Mission] = []
+    used_plans: set[int] = set()
+    for group in _segment_statuses(statuses):
+        first_t = group[0].timestamp
+        # the latest /plan at or before the first status that no earlier mission took
+        plan_idx = None
+        for i, p in enumerate(plans):
+            if p.timestamp <= first_t and i not in used_plans:
+                plan_idx = i
+        if plan_idx is not None:
+            used_plans.update(range(plan_idx + 1))
+        last = group[-1].msg
+        mission = Mission(
+            index=len(missions),
+            label=str(last.plan_label),
+            start_ns=min(first_t, plans[plan_idx].timestamp) if plan_idx is not None else first_t,
+            end_ns=group[-1].timestamp,
+            steps=int(last.step),
+            horizon=int(last.horizon),
+            done=bool(last.done),
+            touched_lava=bool(last.touched_lava),
+            reached_target=bool(last.reached_target),
+            true_return=float(last.true_return),
+            final_terrain=str(last.terrain),
+            status_returns=np.array([[s.timestamp, s.msg.true_return] for s in group], dtype=float),
+            executed_cells=[],
+        )
+        # Rob's cell per executed step (the last status of each step wins)
+        steps_seen: dict[int, tuple[int, int]] = {}
+        for s in group:
+            steps_seen[int(s.msg.step)] = (int(s.msg.row), int(s.msg.col))
+        mission.executed_cells = [steps_seen[k] for k in sorted(steps_seen)]
+        if plan_idx is not None:
+            mission.plan_ns = plans[plan_idx].timestamp
+            mission.plan_xy = path_xy(plans[plan_idx].msg)
+        missions.append(mission)
+    return missions
+
+
+def _attach_plan_infos(missions: list[Mission], plans: Sequence[Logged], infos: Sequence[Logged]) -> None:
+    """Each mission's plan's ``/ird/plan_info``: the one with the /plan message's header stamp,
+    else the latest one logged at or before the plan (or the mission start)."""
     plan_stamps = {p.timestamp: stamp_ns(p.msg.header.stamp) for p in plans}
     for mission in missions:
         info = None
@@ -312,14 +312,16 @@ def missions_from_messages(messages: Mapping[str, Sequence[Logged]]) -> list[Mis
         if not mission.label:
             mission.label = f"mission_{mission.index}"
 
-    # odometry windows: [start, next mission's start)
-    if odoms:
-        odom_arr = np.array([[o.timestamp, *odom_xy(o.msg)] for o in odoms], dtype=float)
-        for i, mission in enumerate(missions):
-            stop = missions[i + 1].start_ns if i + 1 < len(missions) else math.inf
-            sel = (odom_arr[:, 0] >= mission.start_ns) & (odom_arr[:, 0] < stop)
-            mission.odom = odom_arr[sel]
-    return missions
+
+def _attach_odometry(missions: list[Mission], odoms: Sequence[Logged]) -> None:
+    """Each mission's ``/odom`` window: [its start, the next mission's start)."""
+    if not odoms:
+        return
+    odom_arr = np.array([[o.timestamp, *odom_xy(o.msg)] for o in odoms], dtype=float)
+    for i, mission in enumerate(missions):
+        stop = missions[i + 1].start_ns if i + 1 < len(missions) else math.inf
+        sel = (odom_arr[:, 0] >= mission.start_ns) & (odom_arr[:, 0] < stop)
+        mission.odom = odom_arr[sel]
 
 
 def latest_before(items: Sequence[Logged], t_ns: int) -> int | None:

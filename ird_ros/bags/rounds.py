@@ -4,7 +4,7 @@ ROS-free (numpy only): it reads any object with the fields of ``ird_msgs/msg/Que
 (an rclpy message, a message decoded from a bag by ``rosbags``, or a test's stand-in), so the
 designer node, the bag analysis and the tests share one decoder.
 
-- :func:`event_from_msg`: one QueryRecord -> :class:`QueryEvent` (validated; option paths as
+- :func:`event_from_msg`: one QueryRecord -> :class:`QueryRecordData` (validated; option paths as
   (T+1, 2) cell arrays).
 - :func:`rounds_from_events`: events in arrival order -> :class:`Round` per proposal (with its
   answer, if any). A query id is unique for the inference node's lifetime; a repeated
@@ -25,14 +25,14 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from ird_core.vocabulary import EVENTS, QueryEvent
-from ird_ros.conversions.geometry import point_cells
+from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
+from ird_core.worlds.evaluation import evaluate_path
+from ird_ros.geometry import point_cells
+from ird_ros.jobs.ground_truth import evaluation_terrain
+from ird_ros.stamps import stamp_ns
 
 __all__ = [
-    "PROPOSED",
-    "ANSWERED",
-    "EVENTS",
-    "QueryEvent",
+    "QueryRecordData",
     "Round",
     "event_from_msg",
     "rounds_from_events",
@@ -43,18 +43,14 @@ __all__ = [
     "record_dict",
 ]
 
-PROPOSED = QueryEvent.PROPOSED.value
-ANSWERED = QueryEvent.ANSWERED.value
-
-
 @dataclass(frozen=True)
-class QueryEvent:
-    """One ``/ird/queries`` record.
+class QueryRecordData:
+    """One ``/ird/queries`` record (a QueryRecord as numpy).
 
     Attributes:
         query_id: the query's id.
-        event: ``"proposed"`` or ``"answered"``.
-        strategy: ``"info_gain"`` or ``"random"``.
+        event: proposed or answered.
+        strategy: how the question was picked.
         options: q arrays of shape (T+1, 2), int64 (row, col) cells of each option's path.
         feature_names: the d feature names.
         option_features: (q, d) float64 feature counts.
@@ -67,8 +63,8 @@ class QueryEvent:
     """
 
     query_id: int
-    event: str
-    strategy: str
+    event: QueryEvent
+    strategy: QueryStrategy
     options: tuple[np.ndarray, ...]
     feature_names: tuple[str, ...]
     option_features: np.ndarray
@@ -88,8 +84,8 @@ class QueryEvent:
 class Round:
     """A proposal and its answer (``answer`` is None while the query is open)."""
 
-    proposal: QueryEvent
-    answer: QueryEvent | None
+    proposal: QueryRecordData
+    answer: QueryRecordData | None
 
     @property
     def query_id(self) -> int:
@@ -105,15 +101,14 @@ def _err(field: str, problem: str) -> ValueError:
 
 
 def event_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float] = (0.0, 0.0),
-                   field: str = "QueryRecord") -> QueryEvent:
+                   field: str = "QueryRecord") -> QueryRecordData:
     """Decode a QueryRecord; poses are mapped to cells with the map's ``resolution`` and ``origin``.
 
     Raises:
         ValueError: naming the field (``QueryRecord.option_features: ...``).
     """
-    event = str(msg.event)
-    if event not in EVENTS:
-        raise _err(f"{field}.event", f"must be one of {list(EVENTS)}, got {event!r}")
+    event = parse(QueryEvent, str(msg.event), f"{field}.event")
+    strategy = parse(QueryStrategy, str(msg.strategy), f"{field}.strategy")
     names = tuple(str(n) for n in msg.feature_names)
     if not names:
         raise _err(f"{field}.feature_names", "must not be empty")
@@ -132,18 +127,18 @@ def event_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float]
     if not np.all(np.isfinite(features)):
         raise _err(f"{field}.option_features", "non-finite value(s)")
     chosen = int(msg.chosen)
-    if event == ANSWERED and not 0 <= chosen < q:
+    answered = event is QueryEvent.ANSWERED
+    if answered and not 0 <= chosen < q:
         raise _err(f"{field}.chosen", f"{chosen} is out of range for {q} options")
-    stamp = msg.header.stamp
-    return QueryEvent(
-        query_id=int(msg.query_id), event=event, strategy=str(msg.strategy), options=options,
+    return QueryRecordData(
+        query_id=int(msg.query_id), event=event, strategy=strategy, options=options,
         feature_names=names, option_features=features.reshape(q, d),
-        information_gain=float(msg.information_gain), chosen=chosen if event == ANSWERED else -1,
+        information_gain=float(msg.information_gain), chosen=chosen if answered else -1,
         beta=float(msg.beta), answered_by=str(msg.answered_by), num_answers=int(msg.num_answers),
-        stamp_ns=int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        stamp_ns=stamp_ns(msg.header.stamp))
 
 
-def rounds_from_events(events: Iterable[QueryEvent]) -> list[Round]:
+def rounds_from_events(events: Iterable[QueryRecordData]) -> list[Round]:
     """One :class:`Round` per ``proposed`` event, in proposal order, each with its first answer.
 
     An answer pairs with the latest proposal of its id that has no answer yet; an answer with no
@@ -152,7 +147,7 @@ def rounds_from_events(events: Iterable[QueryEvent]) -> list[Round]:
     rounds: list[Round] = []
     latest: dict[int, int] = {}  # query id -> index in rounds of its latest proposal
     for ev in events:
-        if ev.event == PROPOSED:
+        if ev.event is QueryEvent.PROPOSED:
             latest[ev.query_id] = len(rounds)
             rounds.append(Round(ev, None))
         elif ev.query_id in latest and rounds[latest[ev.query_id]].answer is None:
@@ -161,7 +156,7 @@ def rounds_from_events(events: Iterable[QueryEvent]) -> list[Round]:
     return rounds
 
 
-def open_queries(events: Iterable[QueryEvent]) -> list[QueryEvent]:
+def open_queries(events: Iterable[QueryRecordData]) -> list[QueryRecordData]:
     """The proposals (in order) that have no answer yet."""
     return [r.proposal for r in rounds_from_events(events) if r.answer is None]
 
@@ -171,7 +166,7 @@ def round_summary(r: Round, start_ns: int = 0) -> dict[str, Any]:
     p, a = r.proposal, r.answer
     return {
         "query_id": p.query_id,
-        "strategy": p.strategy,
+        "strategy": p.strategy.value,
         "information_gain": _finite_or_none(p.information_gain),
         "num_options": p.num_options,
         "horizon": int(len(p.options[0]) - 1),
@@ -200,7 +195,7 @@ def rounds_table(rows: Sequence[dict[str, Any]]) -> str:
 
 def option_returns(classes: np.ndarray, class_names: Sequence[str], terrain_names: Sequence[str],
                    terrain_rewards: Sequence[float], options: Sequence[np.ndarray]) -> np.ndarray:
-    """True return of each option: the sum over its cells of the true reward of the cell's terrain.
+    """True return of each option: ``ird_core.worlds.evaluation.evaluate_path`` on the ground truth.
 
     Args:
         classes: (H, W) class indices into ``class_names`` (255 = unknown), e.g. /world/terrain.
@@ -210,26 +205,23 @@ def option_returns(classes: np.ndarray, class_names: Sequence[str], terrain_name
     Returns:
         (q,) float64; as ``ird_core.worlds.lavaland.true_return`` (every cell counts, start included).
     Raises:
-        ValueError: naming the field (a class without a reward, an unknown cell, a cell off the map).
+        ValueError: naming the field (a class without a reward, an unknown cell, a cell off the map):
+            an option over unknown terrain is never judged.
     """
     table = dict(zip(terrain_names, (float(r) for r in terrain_rewards)))
     if len(table) != len(terrain_rewards) or len(terrain_names) != len(terrain_rewards):
         raise _err("terrain_rewards", f"{len(terrain_rewards)} rewards for {len(terrain_names)} terrain names")
-    classes = np.asarray(classes)
-    per_class = np.full(256, np.nan)
-    for i, name in enumerate(class_names):
-        if name in table:
-            per_class[i] = table[name]
-    h, w = classes.shape
+    labels, reward = evaluation_terrain(classes, class_names, table, unrewarded_unknown=True)
+    h, w = labels.shape
     returns = np.empty(len(options))
-    for k, cells in enumerate(options):  # q is small; the cells are summed vectorised
+    for k, cells in enumerate(options):  # q is small; each path is evaluated vectorised
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
         if np.any(cells < 0) or np.any(cells[:, 0] >= h) or np.any(cells[:, 1] >= w):
             raise _err(f"options[{k}]", f"a cell lies off the {h}x{w} terrain")
-        rewards = per_class[classes[cells[:, 0], cells[:, 1]]]
-        if np.any(np.isnan(rewards)):
+        outcome = evaluate_path(labels, cells, reward)
+        if outcome.unknown_cells:
             raise _err(f"options[{k}]", "a cell's terrain is unknown or has no true reward")
-        returns[k] = rewards.sum()
+        returns[k] = outcome.true_return
     return returns
 
 
@@ -237,12 +229,12 @@ def _finite_or_none(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def record_dict(ev: QueryEvent) -> dict[str, Any]:
-    """The JSON-able dict of an event (``designer_web_contract.md``: ``show_query``/``show_answer``)."""
+def record_dict(ev: QueryRecordData) -> dict[str, Any]:
+    """The JSON-able dict of an event (the page's ``show_query``/``show_answer``, :mod:`ird_ros.web.server`)."""
     return {
         "query_id": ev.query_id,
-        "event": ev.event,
-        "strategy": ev.strategy,
+        "event": ev.event.value,
+        "strategy": ev.strategy.value,
         "options": [o.tolist() for o in ev.options],
         "feature_names": list(ev.feature_names),
         "option_features": ev.option_features.tolist(),

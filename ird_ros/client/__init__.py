@@ -1,1 +1,46 @@
-"""Clients of a running graph: waits on discovery, messages and services without sleeping."""
+"""One client of a running IRD graph (docs/spec.md section 6): :class:`IrdClient`, its typed results,
+request builders, and the waits it is built on (discovery, messages, services; no sleeps)."""
+
+from __future__ import annotations
+
+from ird_ros.client.ird_client import (
+    ALL_SERVICES,
+    ClientTimeout,
+    GraphNotFound,
+    IrdClient,
+    PendingCall,
+    domain_hint,
+)
+from ird_ros.client.requests import infer_request, plan_request, query_request
+from ird_ros.client.results import (
+    CallFailed,
+    CallResult,
+    CallStatus,
+    Plan,
+    Query,
+    RobDrive,
+    WorldMessages,
+    classify_answer,
+    stamp_key,
+)
+
+__all__ = [
+    "IrdClient",
+    "PendingCall",
+    "ClientTimeout",
+    "GraphNotFound",
+    "ALL_SERVICES",
+    "domain_hint",
+    "CallStatus",
+    "CallResult",
+    "CallFailed",
+    "classify_answer",
+    "Plan",
+    "Query",
+    "RobDrive",
+    "WorldMessages",
+    "stamp_key",
+    "infer_request",
+    "plan_request",
+    "query_request",
+]

@@ -2,8 +2,8 @@
 
 Every wait spins the caller's node (``spin_once`` with a short timeout wakes up on any ROS
 event) until a condition holds or a deadline passes, and then raises ``TimeoutError`` that
-includes the output of the helper processes it was given. Used by the scripts that talk to
-a running graph and by the tests (``ird_ros.testing`` re-exports everything here).
+includes the output of the helper processes it was given. ``ird_ros.client.IrdClient`` is built
+on these waits; tests use them directly for nodes of their own.
 
 rclpy is imported lazily, so importing this module costs nothing without ROS.
 """
@@ -26,7 +26,7 @@ __all__ = [
 
 
 class WatchedProcess(Protocol):
-    """A helper process a wait gives up on when it exits (e.g. ``ird_ros.testing.NodeProcess``)."""
+    """A helper process a wait gives up on when it exits (the tests' node processes)."""
 
     name: str
 

@@ -1,9 +1,9 @@
 """numpy <-> ROS grid messages: FeatureGrid, TerrainGrid, OccupancyGrid (and MapMetaData, Header).
 
-Part of :mod:`ird_ros.conversions` (which re-exports every public name here; import that).
+Part of :mod:`ird_ros.conversions` (which exports every public name here; import that).
 Grid convention (docs/spec.md section 6): a map of H rows and W columns is a numpy array
 indexed ``[row, col, ...]`` in C order; row 0 is the bottom row, x grows with the column
-and y with the row (the geometry itself is in :mod:`ird_ros.conversions.geometry`).
+and y with the row (the geometry itself is in :mod:`ird_ros.geometry`).
 
 Also home of the validation helpers every conversion shares (``_f`` builds the
 ``ValueError`` naming the offending field; ``_check_*`` / ``_read`` / ``_as_float_array``).
@@ -14,7 +14,7 @@ from __future__ import annotations
 import array
 import math
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -31,6 +31,8 @@ __all__ = [
     "TerrainGridData",
     "make_header",
     "make_map_info",
+    "now_stamp",
+    "first_with_layers",
     "feature_grid_to_msg",
     "feature_grid_from_msg",
     "terrain_grid_to_msg",
@@ -99,6 +101,23 @@ def make_header(stamp: Time | None = None, frame_id: str = MAP_FRAME) -> Header:
     if stamp is not None:
         header.stamp = stamp
     return header
+
+
+def now_stamp(node: Any) -> Time:
+    """The node's clock now, as a message stamp (the stamp of everything a node publishes)."""
+    return node.get_clock().now().to_msg()
+
+
+def first_with_layers(maps: Mapping[str, FeatureGridData], topics: Iterable[str],
+                      layers: Sequence[str]) -> tuple[str, FeatureGridData] | None:
+    """The first of ``topics`` (in order) whose latest map in ``maps`` has exactly ``layers``,
+    with its topic; ``None`` when none has."""
+    wanted = tuple(layers)
+    for topic in topics:
+        grid = maps.get(topic)
+        if grid is not None and grid.layers == wanted:
+            return topic, grid
+    return None
 
 
 def _check_geometry(field: str, resolution: float, origin: Sequence[float]) -> Origin:

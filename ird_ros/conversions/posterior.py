@@ -1,24 +1,8 @@
-"""numpy <-> ROS message conversions: the only place where arrays become messages.
+"""numpy <-> ROS posterior messages: RewardPosterior and the flat ``float64[]`` weights fields.
 
-Import this module (``from ird_ros import conversions as conv``): it holds the posterior,
-weights and Path conversions and re-exports the grid ones (:mod:`ird_ros.conversions.grids`)
-and the cell geometry (:mod:`ird_ros.conversions.geometry`), so ``conv.X`` is the one name of each.
-
-Grid convention (docs/spec.md section 6): a map of H rows and W columns is a numpy array
-indexed ``[row, col, ...]`` in C order; row 0 is the bottom row, x grows with the column
-and y with the row, and the centre of cell ``(row, col)`` is at
-``x = origin_x + (col + 0.5) * resolution``, ``y = origin_y + (row + 0.5) * resolution``
-in frame ``map``.
-
-Every ``*_from_msg`` / ``*_to_msg`` function validates its input and raises
-``ValueError`` with a message that starts with the offending field, e.g.
-``"FeatureGrid.data: expected 4500 values (H=15 x W=15 x d=20), got 4499"``. Functions
-that read a message take ``field=`` to name it as the caller sees it (a service node
-passes ``field="training_map"`` so the message says ``training_map.data: ...``).
-
-Large arrays use the fast paths: ``array.array(typecode, arr.tobytes())`` to fill a
-message field and ``np.frombuffer`` to read one (the read arrays are copies, so they
-stay valid and writable after the message is gone).
+Part of :mod:`ird_ros.conversions` (import that). A posterior's ``converged`` flag on the wire is
+the sampler's verdict ``r_hat_max <= ird_core.posterior.R_HAT_CONVERGED`` (docs/spec.md
+section 3); every function raises ``ValueError`` naming the offending field.
 """
 
 from __future__ import annotations
@@ -30,62 +14,12 @@ from typing import Any, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import Path
 
+from ird_core.vocabulary import ZMethod, parse
 from ird_msgs.msg import RewardPosterior
-from ird_ros.conversions.geometry import cell_center, grid_coordinates
-from ird_ros.conversions.grids import (
-    MAP_FRAME,
-    UNKNOWN_CLASS,
-    FeatureGridData,
-    TerrainGridData,
-    _as_float_array,
-    _check_finite,
-    _check_geometry,
-    _check_names,
-    _f,
-    _read,
-    feature_grid_from_msg,
-    feature_grid_to_msg,
-    make_header,
-    make_map_info,
-    occupancy_grid_from_msg,
-    occupancy_grid_to_msg,
-    terrain_grid_from_msg,
-    terrain_grid_to_msg,
-)
-from ird_ros.conversions.queries import options_to_paths, query_record_from_msg, query_record_to_msg
+from ird_ros.conversions.grids import MAP_FRAME, _as_float_array, _check_finite, _check_names, _f, _read, make_header
 
-__all__ = [
-    "MAP_FRAME",
-    "R_HAT_CONVERGED",
-    "UNKNOWN_CLASS",
-    "FeatureGridData",
-    "TerrainGridData",
-    "PosteriorData",
-    "make_header",
-    "make_map_info",
-    "feature_grid_to_msg",
-    "feature_grid_from_msg",
-    "terrain_grid_to_msg",
-    "terrain_grid_from_msg",
-    "occupancy_grid_to_msg",
-    "occupancy_grid_from_msg",
-    "posterior_to_msg",
-    "posterior_from_msg",
-    "cells_to_path",
-    "path_to_cells",
-    "cell_center",
-    "weights_to_flat",
-    "weights_from_flat",
-    "options_to_paths",
-    "query_record_to_msg",
-    "query_record_from_msg",
-]
-
-R_HAT_CONVERGED = 1.1
-"""A posterior is ``converged`` when its largest split R-hat is at most this."""
+__all__ = ["PosteriorData", "posterior_to_msg", "posterior_from_msg", "weights_to_flat", "weights_from_flat"]
 
 
 # --------------------------------------------------------------------------- data classes
@@ -104,7 +38,7 @@ class PosteriorData:
     samples: np.ndarray
     feature_names: tuple[str, ...]
     proxy_weights: np.ndarray
-    method: str
+    method: ZMethod
     beta: float
     prior_sigma: float
     acceptance_rate: float
@@ -152,14 +86,9 @@ def _check_uint32(field: str, value: Any) -> int:
     return v
 
 
-def _check_method(field: str, method: str) -> None:
-    """``method`` must be one of ``ird_core.posterior.METHODS`` (the one list of them)."""
-    # Imported here: ird_core.posterior loads scipy, which nodes that never handle a posterior
-    # (rob, the recorder) should not pay for at start-up.
-    from ird_core.posterior import METHODS
-
-    if method not in METHODS:
-        raise _f(field, f"must be one of {list(METHODS)}, got {method!r}")
+def _check_method(field: str, method: str) -> ZMethod:
+    """``method`` as a :class:`ird_core.vocabulary.ZMethod` (``ValueError`` naming ``field``)."""
+    return parse(ZMethod, method, field)
 
 
 def posterior_to_msg(
@@ -176,21 +105,38 @@ def posterior_to_msg(
 
     ``feature_names`` has d entries; ``proxy_weights`` has shape (p,), p = d unless the
     proxy was defined on a proxy map with its own layers (InferReward.proxy_map). ``r_hat_max`` and
-    ``ess_min`` may be NaN (not computed); ``converged`` is set to ``r_hat_max <= 1.1``.
+    ``ess_min`` may be NaN (not computed); ``converged`` is set to
+    ``r_hat_max <= ird_core.posterior.R_HAT_CONVERGED``.
     """
+    # Imported here: ird_core.posterior loads scipy, which nodes that never publish a posterior
+    # (rob, the recorder) should not pay for at start-up.
+    from ird_core.posterior import R_HAT_CONVERGED
+
     field = "RewardPosterior"
     names = _check_names(f"{field}.feature_names", feature_names)
-    d = len(names)
     samples = _as_float_array(f"{field}.samples", posterior.samples, np.float64)
-    if samples.ndim != 2 or samples.shape[0] == 0 or samples.shape[1] != d:
-        raise _f(f"{field}.samples", f"expected shape (K>=1, d={d}), got {samples.shape}")
+    if samples.ndim != 2 or samples.shape[0] == 0 or samples.shape[1] != len(names):
+        raise _f(f"{field}.samples", f"expected shape (K>=1, d={len(names)}), got {samples.shape}")
     _check_finite(f"{field}.samples", samples)
     proxy = _as_float_array(f"{field}.proxy_weights", proxy_weights, np.float64).reshape(-1)
     if proxy.size == 0:
         raise _f(f"{field}.proxy_weights", "must not be empty")
     _check_finite(f"{field}.proxy_weights", proxy)
-    method = str(posterior.method)
-    _check_method(f"{field}.method", method)
+    msg = RewardPosterior()
+    msg.header = make_header(stamp, frame_id)
+    msg.feature_names = list(names)
+    _fill_sampler_fields(msg, posterior, field)
+    msg.proxy_weights = array.array("d", proxy.tobytes())
+    msg.samples = array.array("d", np.ascontiguousarray(samples).tobytes())
+    msg.num_samples = int(samples.shape[0])
+    msg.converged = bool(msg.r_hat_max <= R_HAT_CONVERGED)  # False for NaN
+    return msg
+
+
+def _fill_sampler_fields(msg: RewardPosterior, posterior: Any, field: str) -> None:
+    """Check and copy the sampler's scalars (method, beta, prior_sigma, acceptance_rate, r_hat_max,
+    ess_min, num_chains, seed) into ``msg``; ``ValueError`` naming ``<field>.<name>``."""
+    msg.method = _check_method(f"{field}.method", str(posterior.method)).value
     beta = float(posterior.beta)
     if not math.isfinite(beta) or beta < 0.0:
         raise _f(f"{field}.beta", f"must be finite and >= 0, got {posterior.beta!r}")
@@ -200,33 +146,22 @@ def posterior_to_msg(
     acc = float(posterior.acceptance_rate)
     if not (0.0 <= acc <= 1.0):
         raise _f(f"{field}.acceptance_rate", f"must be in [0, 1], got {posterior.acceptance_rate!r}")
-    r_hat = float(posterior.r_hat_max)
-    if math.isinf(r_hat) or (not math.isnan(r_hat) and r_hat < 0.0):
-        raise _f(f"{field}.r_hat_max", f"must be >= 0 or NaN (not computed), got {posterior.r_hat_max!r}")
-    ess = float(posterior.ess_min)
-    if math.isinf(ess) or (not math.isnan(ess) and ess < 0.0):
-        raise _f(f"{field}.ess_min", f"must be >= 0 or NaN (not computed), got {posterior.ess_min!r}")
+    r_hat = _check_diagnostic(f"{field}.r_hat_max", posterior.r_hat_max)
+    ess = _check_diagnostic(f"{field}.ess_min", posterior.ess_min)
     num_chains = _check_uint32(f"{field}.num_chains", posterior.num_chains)
     if num_chains == 0:
         raise _f(f"{field}.num_chains", "must be > 0")
-    seed = _check_uint32(f"{field}.seed", posterior.seed)
+    msg.seed = _check_uint32(f"{field}.seed", posterior.seed)
+    msg.beta, msg.prior_sigma, msg.acceptance_rate = beta, sigma, acc
+    msg.r_hat_max, msg.ess_min, msg.num_chains = r_hat, ess, num_chains
 
-    msg = RewardPosterior()
-    msg.header = make_header(stamp, frame_id)
-    msg.feature_names = list(names)
-    msg.method = method
-    msg.beta = beta
-    msg.prior_sigma = sigma
-    msg.proxy_weights = array.array("d", proxy.tobytes())
-    msg.samples = array.array("d", np.ascontiguousarray(samples).tobytes())
-    msg.num_samples = int(samples.shape[0])
-    msg.num_chains = num_chains
-    msg.seed = seed
-    msg.acceptance_rate = acc
-    msg.r_hat_max = r_hat
-    msg.ess_min = ess
-    msg.converged = bool(r_hat <= R_HAT_CONVERGED)  # False for NaN
-    return msg
+
+def _check_diagnostic(field: str, value: Any) -> float:
+    """An MCMC diagnostic: a finite value >= 0, or NaN (not computed)."""
+    v = float(value)
+    if math.isinf(v) or (not math.isnan(v) and v < 0.0):
+        raise _f(field, f"must be >= 0 or NaN (not computed), got {value!r}")
+    return v
 
 
 def posterior_from_msg(msg: RewardPosterior, *, field: str = "RewardPosterior") -> PosteriorData:
@@ -240,14 +175,14 @@ def posterior_from_msg(msg: RewardPosterior, *, field: str = "RewardPosterior") 
     if proxy.size == 0:
         raise _f(f"{field}.proxy_weights", "must not be empty")
     _check_finite(f"{field}.proxy_weights", proxy)
-    _check_method(f"{field}.method", msg.method)
+    method = _check_method(f"{field}.method", msg.method)
     if not math.isfinite(msg.beta) or msg.beta < 0.0:
         raise _f(f"{field}.beta", f"must be finite and >= 0, got {msg.beta!r}")
     return PosteriorData(
         samples=samples,
         feature_names=names,
         proxy_weights=proxy,
-        method=msg.method,
+        method=method,
         beta=float(msg.beta),
         prior_sigma=float(msg.prior_sigma),
         acceptance_rate=float(msg.acceptance_rate),
@@ -257,98 +192,3 @@ def posterior_from_msg(msg: RewardPosterior, *, field: str = "RewardPosterior") 
         seed=int(msg.seed),
         converged=bool(msg.converged),
     )
-
-
-# --------------------------------------------------------------------------- Path
-
-
-def _check_cells(field: str, cells: Any, height: int | None, width: int | None) -> np.ndarray:
-    arr = np.asarray(cells)
-    if arr.size == 0:
-        raise _f(field, "must contain at least one cell")
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise _f(field, f"expected (row, col) pairs, shape (N, 2), got shape {arr.shape}")
-    if arr.dtype.kind not in "iu":
-        if arr.dtype.kind != "f" or not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
-            raise _f(field, f"cells must be integer (row, col) pairs, got dtype {arr.dtype}")
-    arr = arr.astype(np.int64)
-    if np.any(arr < 0):
-        raise _f(field, f"negative cell index at position {int(np.flatnonzero((arr < 0).any(axis=1))[0])}")
-    if height is not None and np.any(arr[:, 0] >= height):
-        raise _f(field, f"row off the map (height {height}) at position {int(np.flatnonzero(arr[:, 0] >= height)[0])}")
-    if width is not None and np.any(arr[:, 1] >= width):
-        raise _f(field, f"col off the map (width {width}) at position {int(np.flatnonzero(arr[:, 1] >= width)[0])}")
-    return arr
-
-
-def cells_to_path(
-    cells: Sequence[tuple[int, int]] | np.ndarray,
-    *,
-    resolution: float = 1.0,
-    origin: Sequence[float] = (0.0, 0.0),
-    height: int | None = None,
-    width: int | None = None,
-    stamp: Time | None = None,
-    frame_id: str = MAP_FRAME,
-) -> Path:
-    """A nav_msgs/Path through the centres of ``cells`` ((row, col) pairs, shape (N, 2)).
-
-    Poses carry the identity orientation. With ``height``/``width`` given, every cell must
-    lie on the map.
-    """
-    field = "Path.poses"
-    ox, oy = _check_geometry("Path", resolution, origin)
-    arr = _check_cells(field, cells, height, width)
-    path = Path()
-    path.header = make_header(stamp, frame_id)
-    poses = []
-    for row, col in arr.tolist():
-        pose = PoseStamped()
-        pose.header = make_header(stamp, frame_id)
-        pose.pose.position.x, pose.pose.position.y = cell_center(row, col, resolution, (ox, oy))
-        pose.pose.orientation.w = 1.0
-        poses.append(pose)
-    path.poses = poses
-    return path
-
-
-def path_to_cells(
-    path: Path,
-    *,
-    resolution: float = 1.0,
-    origin: Sequence[float] = (0.0, 0.0),
-    height: int | None = None,
-    width: int | None = None,
-    field: str = "Path",
-    tolerance: float = 1e-6,
-) -> list[tuple[int, int]]:
-    """The (row, col) cells of a nav_msgs/Path whose poses lie at cell centres.
-
-    Raises ``ValueError`` if a pose is not within ``tolerance * resolution`` of a cell
-    centre, or (with ``height``/``width``) off the map.
-    """
-    ox, oy = _check_geometry(field, resolution, origin)
-    if not path.poses:
-        raise _f(f"{field}.poses", "must contain at least one pose")
-    xy = np.array([(p.pose.position.x, p.pose.position.y) for p in path.poses], dtype=np.float64)
-    finite = np.isfinite(xy).all(axis=1)
-    offset = np.zeros_like(xy)  # (N, 2) (row, col) distance from the nearest cell centre
-    offset[finite] = grid_coordinates(xy[finite], resolution, (ox, oy)) - 0.5
-    cells = np.round(offset)  # half-to-even, like round()
-    off_centre = (np.abs(offset - cells) > tolerance).any(axis=1)
-    rows, cols = cells[:, 0], cells[:, 1]
-    off_map = (rows < 0) | (cols < 0)
-    if height is not None:
-        off_map |= rows >= height
-    if width is not None:
-        off_map |= cols >= width
-    bad = ~finite | off_centre | off_map
-    if bad.any():  # report the first bad pose, its first problem in the order checked
-        i = int(np.argmax(bad))
-        x, y = path.poses[i].pose.position.x, path.poses[i].pose.position.y
-        if not finite[i]:
-            raise _f(f"{field}.poses[{i}]", f"non-finite position ({x}, {y})")
-        if off_centre[i]:
-            raise _f(f"{field}.poses[{i}]", f"position ({x}, {y}) is not at a cell centre")
-        raise _f(f"{field}.poses[{i}]", f"cell (row={int(rows[i])}, col={int(cols[i])}) is off the map")
-    return [(int(r), int(c)) for r, c in cells.astype(np.int64)]

@@ -1,7 +1,8 @@
 """numpy <-> ROS messages of the designer conversation (ProposeQuery, AnswerQuery, QueryRecord).
 
-Re-exported by :mod:`ird_ros.conversions` (use ``conv.X``). Decoding a QueryRecord is
-:func:`ird_ros.bags.rounds.event_from_msg` (ROS-free, shared with the bag analysis).
+Part of :mod:`ird_ros.conversions` (use ``conv.X``); docs/spec.md section 7. Decoding a
+QueryRecord is :func:`ird_ros.bags.rounds.event_from_msg` (ROS-free, shared with the bag
+analysis); the event is an ``ird_core.vocabulary.QueryEvent``.
 """
 
 from __future__ import annotations
@@ -13,9 +14,11 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import Path
 
+from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
 from ird_msgs.msg import QueryRecord
-from ird_ros.bags.rounds import EVENTS, PROPOSED, QueryEvent, event_from_msg
+from ird_ros.bags.rounds import QueryRecordData, event_from_msg
 from ird_ros.conversions.grids import MAP_FRAME, _as_float_array, _check_finite, _check_names, _f, make_header
+from ird_ros.conversions.paths import cells_to_path
 
 __all__ = ["options_to_paths", "query_record_to_msg", "query_record_from_msg"]
 
@@ -30,8 +33,6 @@ def options_to_paths(
     stamp: Time | None = None,
 ) -> list[Path]:
     """One nav_msgs/Path per option ((T+1, 2) cells each), poses at cell centres."""
-    from ird_ros.conversions import cells_to_path  # conversions re-exports this module
-
     return [cells_to_path(cells, resolution=resolution, origin=origin, height=height, width=width, stamp=stamp)
             for cells in option_cells]
 
@@ -39,8 +40,8 @@ def options_to_paths(
 def query_record_to_msg(
     *,
     query_id: int,
-    event: str,
-    strategy: str,
+    event: QueryEvent | str,
+    strategy: QueryStrategy | str,
     options: Sequence[Path],
     feature_names: Sequence[str],
     option_features: np.ndarray,
@@ -54,25 +55,25 @@ def query_record_to_msg(
 ) -> QueryRecord:
     """A QueryRecord; ``option_features`` (q, d) with q = ``len(options)``, d = ``len(feature_names)``."""
     field = "QueryRecord"
-    if event not in EVENTS:
-        raise _f(f"{field}.event", f"must be one of {list(EVENTS)}, got {event!r}")
+    kind = parse(QueryEvent, event, f"{field}.event")
+    parse(QueryStrategy, strategy, f"{field}.strategy")
     names = _check_names(f"{field}.feature_names", feature_names)
     feats = _as_float_array(f"{field}.option_features", option_features, np.float64)
     if feats.shape != (len(options), len(names)):
         raise _f(f"{field}.option_features", f"expected shape ({len(options)}, {len(names)}), got {feats.shape}")
     _check_finite(f"{field}.option_features", feats)
-    if event != PROPOSED and not 0 <= int(chosen) < len(options):
+    if kind is not QueryEvent.PROPOSED and not 0 <= int(chosen) < len(options):
         raise _f(f"{field}.chosen", f"{chosen} is out of range for {len(options)} options")
     msg = QueryRecord()
     msg.header = make_header(stamp, frame_id)
     msg.query_id = int(query_id)
-    msg.event = event
-    msg.strategy = str(strategy)
+    msg.event = kind.value
+    msg.strategy = QueryStrategy(strategy).value
     msg.options = list(options)
     msg.feature_names = list(names)
     msg.option_features = array.array("d", np.ascontiguousarray(feats).tobytes())
     msg.information_gain = float(information_gain)
-    msg.chosen = int(chosen) if event != PROPOSED else -1
+    msg.chosen = int(chosen) if kind is not QueryEvent.PROPOSED else -1
     msg.beta = float(beta)
     msg.answered_by = str(answered_by)
     msg.num_answers = int(num_answers)
@@ -80,6 +81,6 @@ def query_record_to_msg(
 
 
 def query_record_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float] = (0.0, 0.0),
-                          field: str = "QueryRecord") -> QueryEvent:
+                          field: str = "QueryRecord") -> QueryRecordData:
     """Decode a QueryRecord (see :func:`ird_ros.bags.rounds.event_from_msg`)."""
     return event_from_msg(msg, resolution=resolution, origin=origin, field=field)

@@ -7,6 +7,7 @@ from ird_ros.graph.nodes import (
     NODES,
     NODES_BY_NAME,
     PARAMS_FILE,
+    RECORDER_SPEC,
     NodeSpec,
 )
 
@@ -16,4 +17,5 @@ __all__ = [
     "NODES_BY_NAME",
     "DEFAULT_NODES",
     "PARAMS_FILE",
+    "RECORDER_SPEC",
 ]

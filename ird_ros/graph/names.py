@@ -29,6 +29,7 @@ __all__ = [
     "NODE_PLANNER",
     "NODE_ROB",
     "NODE_DESIGNER",
+    "NODE_RECORDER",
     "TOPIC_TRAIN_FEATURES",
     "TOPIC_TEST_FEATURES",
     "TOPIC_TRAIN_PROXY_FEATURES",
@@ -44,6 +45,7 @@ __all__ = [
     "TOPIC_ODOM",
     "TOPIC_ROB_STATUS",
     "TOPIC_QUERIES",
+    "TOPIC_RECORDER_STATUS",
     "SRV_GENERATE",
     "SRV_INFER",
     "SRV_QUERY",
@@ -70,6 +72,7 @@ NODE_INFERENCE = "inference"
 NODE_PLANNER = "planner"
 NODE_ROB = "rob"
 NODE_DESIGNER = "designer"
+NODE_RECORDER = "recorder"
 
 # world
 TOPIC_TRAIN_FEATURES = "/world/train_features"
@@ -97,6 +100,8 @@ SRV_PLAN = "/ird/plan"
 # rob
 TOPIC_ODOM = "/odom"
 TOPIC_ROB_STATUS = "/rob/status"
+# recorder: std_msgs/String, latched, JSON {"output_dir": ..., "counts": {topic: messages}}
+TOPIC_RECORDER_STATUS = "/recorder/status"
 
 LATCHED = "latched"
 STREAM = "stream"

@@ -1,6 +1,8 @@
 """The IRD ROS graph as data: which node runs from which module, what it publishes and serves.
 
-For the launcher (start order, readiness) and for documentation. Data only: no ROS import.
+The one node record of the project (docs/spec.md section 6): the launcher turns it into
+processes and readiness checks (``ird_ros.launch.plan``), tests replace a node's ``script``
+and ``ros_args`` to run stand-ins. Data only: no ROS import.
 
 Readiness of a node (what a launcher waits for before it calls the node "up"):
 
@@ -11,16 +13,13 @@ Readiness of a node (what a launcher waits for before it calls the node "up"):
 
 ``ready_topics`` only appear once the node's inputs exist: perception publishes after the
 world did; the planner's risk map needs a posterior, so it is not a readiness topic.
-``after`` lists the nodes whose output a node needs before it can become ready (start order).
+``after`` lists the nodes whose output a node needs before it can become ready; the launcher
+starts them first.
 
 Every node logs ``<name> ready`` (``ird_ros.runtime.node_main.run_node``) when it starts spinning: its
 publishers, subscriptions and services exist and, for inference and planner, the worker process
-has started and imported ``ird_core``. Measured process start to that line on the 2-core dev
-machine while other jobs kept it busy (load average 5-10): world 1.4-3.5 s
-(15x15, builds and publishes the first world before it is ready), perception 1.8-2.1 s (then
-its outputs follow about 0.3 s after the world's maps), inference 2.5-3.6 s and planner
-1.7-3.2 s (both include the worker process start), rob 0.4-0.8 s. SIGINT/SIGTERM to exit:
-0.2-0.8 s, exit code 0.
+has started and imported ``ird_core``; the world has built and published its first world. A
+node exits with code 0 on SIGINT or SIGTERM.
 """
 
 from __future__ import annotations
@@ -29,7 +28,7 @@ from dataclasses import dataclass
 
 from ird_ros.graph import names
 
-__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "PARAMS_FILE"]
+__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "RECORDER_SPEC", "PARAMS_FILE"]
 
 PARAMS_FILE = "msgs_config/params/graph.yaml"
 """The one parameter file of the graph, relative to the repository root. The parameters' defaults
@@ -39,28 +38,32 @@ for whoever edits it, and ``tests/test_graph_params.py`` keeps the two in step."
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One node of the graph.
+    """One node of the graph: how to run it and when it counts as ready.
 
     Attributes:
         name: node name (``/name`` in the graph, key in graph.yaml).
-        module: run with ``python -m <module> --ros-args --params-file <PARAMS_FILE>``.
+        module: run as ``python -m <module> --ros-args --params-file <PARAMS_FILE>``.
         publishes: topics the node publishes (see ``names.TOPIC_TYPES`` / ``names.TOPIC_QOS``).
         subscribes: topics it reads.
         services: services it serves.
         ready_topics: latched topics on which a message must have arrived.
-        after: nodes whose output this node needs to become ready.
+        after: nodes whose output this node needs to become ready (started before it).
         default: started when no node list is given (``GraphLauncher(nodes=None)``,
             ``scripts/launch_graph.py`` without ``--nodes``); the designer is off by default.
+        script: if set, run as ``python <script>`` instead of ``python -m <module>`` (stand-ins).
+        ros_args: appended after ``--ros-args --params-file FILE`` (e.g. ``-p key:=value``).
     """
 
     name: str
     module: str
-    publishes: tuple[str, ...]
-    subscribes: tuple[str, ...]
-    services: tuple[str, ...]
-    ready_topics: tuple[str, ...]
+    publishes: tuple[str, ...] = ()
+    subscribes: tuple[str, ...] = ()
+    services: tuple[str, ...] = ()
+    ready_topics: tuple[str, ...] = ()
     after: tuple[str, ...] = ()
     default: bool = True
+    script: str | None = None
+    ros_args: tuple[str, ...] = ()
 
 
 NODES: tuple[NodeSpec, ...] = (
@@ -136,3 +139,7 @@ NODES: tuple[NodeSpec, ...] = (
 NODES_BY_NAME: dict[str, NodeSpec] = {spec.name: spec for spec in NODES}
 DEFAULT_NODES: tuple[str, ...] = tuple(spec.name for spec in NODES if spec.default)
 """The nodes started when no node list is given."""
+
+RECORDER_SPEC = NodeSpec(name=names.NODE_RECORDER, module="ird_ros.nodes.recorder", default=False)
+"""The bag recorder: started by the launcher only when it records (not in :data:`NODES`); it
+subscribes to what the other nodes publish, and its readiness is its own (``ird_ros.launch.readiness``)."""

@@ -1,6 +1,7 @@
-"""The inference node's evidence of the current world and its query bookkeeping (no ROS).
+"""The inference node's evidence of the current world and its query bookkeeping (no ROS;
+docs/spec.md section 7).
 
-:class:`Evidence` holds what the posterior is conditioned on: the proxy observation of the
+:class:`WorldEvidence` holds what the posterior is conditioned on: the proxy observation of the
 latest successful ``/ird/infer`` (its validated job) and every answer taken since, with the
 latest posterior (the warm start of the next re-sampling) and the open queries.
 
@@ -12,9 +13,9 @@ Lifetime (what "the current world" means):
   the new world's own map before this node received its proxy);
 - query ids are unique for the node's lifetime; ids of forgotten worlds are refused as such.
 
-Answers are taken one at a time: while a re-sampling runs (:attr:`Evidence.resampling`) a
+Answers are taken one at a time: while a re-sampling runs (:attr:`WorldEvidence.resampling`) a
 second answer is refused with ``busy`` (nothing changes; the caller answers again after the
-next posterior). :attr:`Evidence.epoch` changes whenever the evidence is replaced, so a
+next posterior). :attr:`WorldEvidence.epoch` changes whenever the evidence is replaced, so a
 re-sampling that finishes after its world was forgotten is dropped, never mixed in.
 """
 
@@ -22,15 +23,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ird_core import posterior as core_inference
+from ird_core.checks import check_real
 from ird_core.designer import queries as core_queries
 from ird_core.mdp import GridMDP
+from ird_core.vocabulary import QueryStrategy
+from ird_ros.jobs.inference import InferenceJob
 
-__all__ = ["QueryJob", "OpenQuery", "Evidence", "run_query", "resample_seed"]
+if TYPE_CHECKING:  # the options are nav_msgs/Path messages, built by the node; no ROS import here
+    from nav_msgs.msg import Path
+
+__all__ = ["QueryJob", "ProposalRecord", "OpenQuery", "WorldEvidence", "run_query", "resample_seed"]
 
 
 @dataclass(frozen=True)
@@ -41,7 +48,7 @@ class QueryJob:
     samples: np.ndarray
     beta: float
     num_options: int
-    strategy: str
+    strategy: QueryStrategy
     seed: int
 
 
@@ -55,6 +62,25 @@ def resample_seed(seed: int, num_answers: int) -> int:
     return (int(seed) + 7919 * int(num_answers)) % 2**32
 
 
+@dataclass(frozen=True)
+class ProposalRecord:
+    """What every ``/ird/queries`` record of a query repeats: the fields of its proposal.
+
+    Attributes:
+        strategy: how the question was picked.
+        options: one nav_msgs/Path per option (poses at cell centres).
+        feature_names: the d feature names (the posterior's).
+        option_features: (q, d) feature counts of the options.
+        information_gain: expected information gain of the answer, nats.
+    """
+
+    strategy: QueryStrategy
+    options: tuple[Path, ...]
+    feature_names: tuple[str, ...]
+    option_features: np.ndarray
+    information_gain: float
+
+
 @dataclass
 class OpenQuery:
     """A proposed query of the current evidence and how the record shows it."""
@@ -62,16 +88,16 @@ class OpenQuery:
     query_id: int
     query: core_queries.Query
     feature_names: tuple[str, ...]
-    record: dict[str, Any]  # the query_record_to_msg keywords of its "proposed" event
+    record: ProposalRecord
     answered: bool = False
 
 
 @dataclass
-class Evidence:
+class WorldEvidence:
     """The current world's evidence (see the module doc). All methods are called on the node's
     executor thread, so no locking."""
 
-    job: Any = None  # the InferenceJob of the proxy observation; None = no evidence
+    job: InferenceJob | None = None  # the job of the proxy observation; None = no evidence
     feature_names: tuple[str, ...] = ()
     world_stamp: tuple[int, int] | None = None  # training map's header stamp (sec, nanosec)
     posterior: core_inference.Posterior | None = None
@@ -83,7 +109,7 @@ class Evidence:
     resampling: bool = False
     last_proxy_stamp: tuple[int, int] | None = None
 
-    def reset(self, job: Any, posterior: core_inference.Posterior, feature_names: tuple[str, ...],
+    def reset(self, job: InferenceJob, posterior: core_inference.Posterior, feature_names: tuple[str, ...],
               world_stamp: tuple[int, int]) -> None:
         """New evidence: the proxy of ``job`` (its posterior ``posterior``), no answers."""
         self._retire()
@@ -110,7 +136,7 @@ class Evidence:
             return True
         return False
 
-    def add_query(self, query: core_queries.Query, record: dict[str, Any]) -> int:
+    def add_query(self, query: core_queries.Query, record: ProposalRecord) -> int:
         """Register a proposal; returns its id."""
         qid = self.next_id
         self.next_id += 1
@@ -132,7 +158,9 @@ class Evidence:
             raise ValueError(f"chosen: {chosen} is out of range for {q} options (0..{q - 1})")
         if not math.isfinite(beta) or beta < 0.0:
             raise ValueError(f"beta: must be finite and >= 0 (0 = the node's answer_beta), got {beta!r}")
-        return open_query, float(default_beta) if beta == 0.0 else float(beta)
+        answer_beta = float(default_beta) if beta == 0.0 else float(beta)
+        check_real("beta", answer_beta, positive=False)  # the range every beta is held to (ird_core.checks)
+        return open_query, answer_beta
 
     def choice(self, open_query: OpenQuery, chosen: int, beta: float) -> core_inference.ChoiceObservation:
         return core_inference.ChoiceObservation(open_query.query.option_features, int(chosen), float(beta))

@@ -6,11 +6,13 @@ plan one cell per tick: tick ``k`` reports plan cell ``k`` (``step = k``, the st
 after that Rob idles (``tick()`` returns ``None``) until a new plan arrives. A new plan replaces
 the current one at once and execution restarts at its first cell.
 
-Evaluation uses the ground-truth terrain of the test map and the true per-terrain rewards:
-``true_return`` is the sum of the true reward of every visited cell, the start included, so a
-finished plan of ``T + 1`` cells has the same value as ``ird_core.worlds.lavaland.true_return``;
-``touched_lava`` / ``reached_target`` are true once any visited cell is lava / a target.
-Terrain names come from the ground truth's class names ("lava", "target").
+Evaluation (docs/spec.md section 5) is ``ird_core.worlds.evaluation.evaluate_path`` of each
+visited cell on the ground-truth terrain of the test map with the true per-terrain rewards
+(:func:`ird_ros.jobs.ground_truth.evaluation_terrain`): ``true_return`` is the sum of the true
+reward of every visited cell, the start included, so a finished plan of ``T + 1`` cells has the
+same value as ``ird_core.worlds.evaluation.true_return``; ``touched_lava`` / ``reached_target``
+are true once any visited cell is lava / a target (recognised by the class names). Rob's policy
+for unknown terrain: a cell of unknown class, or of a terrain without a true reward, earns 0.
 """
 
 from __future__ import annotations
@@ -21,10 +23,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["LAVA", "TARGET", "RobStatusData", "RobExecutor"]
+from ird_core.worlds.evaluation import evaluate_path
+from ird_ros.jobs.ground_truth import evaluation_terrain
 
-LAVA = "lava"
-TARGET = "target"
+__all__ = ["UNKNOWN_TERRAIN", "RobStatusData", "RobExecutor"]
+
+UNKNOWN_TERRAIN = "unknown"
+"""``RobStatus.terrain`` of a cell whose class index has no name (``UNKNOWN_CLASS``)."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,7 @@ class RobExecutor:
         self._labels: np.ndarray | None = None
         self._class_names: tuple[str, ...] = ()
         self._rewards: dict[str, float] | None = None  # None until the world says
+        self._evaluation: tuple[np.ndarray, np.ndarray] | None = None  # (labels, reward) once ready
         self._cells: list[tuple[int, int]] | None = None
         self._stamp: Any = None
         self._label = ""
@@ -76,6 +82,7 @@ class RobExecutor:
             raise ValueError(f"classes: expected a non-empty (H, W) array, got shape {classes.shape}")
         self._labels = classes.copy()
         self._class_names = tuple(class_names)
+        self._evaluation = None
 
     def set_rewards(self, terrain_names: Sequence[str], rewards: Sequence[float]) -> None:
         """The true reward per step on each terrain (by name)."""
@@ -87,6 +94,7 @@ class RobExecutor:
         if not all(math.isfinite(r) for r in rewards):
             raise ValueError("true_terrain_rewards: must be finite")
         self._rewards = dict(zip(terrain_names, rewards))
+        self._evaluation = None
 
     @property
     def has_terrain(self) -> bool:
@@ -148,7 +156,16 @@ class RobExecutor:
         value = int(self._labels[row, col])
         if 0 <= value < len(self._class_names):
             return self._class_names[value]
-        return "unknown"
+        return UNKNOWN_TERRAIN
+
+    def _evaluation_terrain(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ground truth as ``evaluate_path``'s labels and reward per label (Rob's policy:
+        a terrain without a true reward earns 0)."""
+        if self._evaluation is None:
+            assert self._labels is not None and self._rewards is not None
+            self._evaluation = evaluation_terrain(self._labels, self._class_names, self._rewards,
+                                                  unrewarded_unknown=False)
+        return self._evaluation
 
     def tick(self) -> RobStatusData | None:
         """Move to the next cell of the plan and report it; ``None`` when idle or waiting."""
@@ -160,11 +177,11 @@ class RobExecutor:
         if not (0 <= row < height and 0 <= col < width):  # the terrain changed under the plan
             self._done = True
             raise ValueError(f"plan: cell {self._index} ({row}, {col}) is off the {height}x{width} map")
-        terrain = self.terrain_at(row, col)
-        self._touched_lava |= terrain == LAVA
-        self._reached_target |= terrain == TARGET
-        assert self._rewards is not None
-        self._return += self._rewards.get(terrain, 0.0) if self._rewards else math.nan
+        labels, reward = self._evaluation_terrain()
+        outcome = evaluate_path(labels, [(row, col)], reward)  # unknown cells add 0 (Rob's policy)
+        self._touched_lava |= outcome.touched_lava
+        self._reached_target |= outcome.reached_target
+        self._return += outcome.true_return if self._rewards else math.nan
         step = self._index
         horizon = len(self._cells) - 1
         self._done = step >= horizon
@@ -172,7 +189,7 @@ class RobExecutor:
         return RobStatusData(
             row=row,
             col=col,
-            terrain=terrain,
+            terrain=self.terrain_at(row, col),
             step=step,
             horizon=horizon,
             done=self._done,

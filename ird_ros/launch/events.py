@@ -4,6 +4,10 @@ Names follow ``ros2 launch`` where it has one (``respawn``, ``respawn_delay``,
 ``ProcessStarted``, ``ProcessExited``). Every ``ProcessEvent`` has ``kind`` (an
 ``EventKind``, whose values are the plain strings callers may compare with), ``name``
 (also ``node``), ``pid``, ``index``, ``time`` and a human-readable ``detail``.
+
+A child that dies is followed by exactly one of: ``ProcessRespawning`` (it will be started
+again) or, when its spec's ``respawn_max_retries`` restarts are used up, ``ProcessGaveUp``;
+a child without ``respawn`` gets neither.
 """
 
 from __future__ import annotations
@@ -11,18 +15,24 @@ from __future__ import annotations
 import enum
 import signal
 from dataclasses import dataclass
+from typing import Literal
 
 __all__ = [
     "ChildState",
     "EventKind",
     "OutputMode",
+    "OutputChoice",
+    "parse_output_mode",
     "ProcessSpec",
+    "UNLIMITED_RETRIES",
+    "check_max_retries",
     "ChildInfo",
     "ProcessEvent",
     "ProcessStarted",
     "ProcessReady",
     "ProcessExited",
     "ProcessRespawning",
+    "ProcessGaveUp",
     "SignalSent",
     "describe_exit",
 ]
@@ -42,6 +52,7 @@ class EventKind(enum.StrEnum):
     READY = "ready"
     DIED = "died"
     RESPAWNING = "respawning"
+    GAVE_UP = "gave_up"
     STOPPED = "stopped"
     SIGNALLED = "signalled"
 
@@ -50,6 +61,18 @@ class OutputMode(enum.StrEnum):
     PREFIX = "prefix"  # echoed as ``[name] line`` (and kept)
     QUIET = "quiet"  # kept only: ``output(name)``, error messages
     FILES = "files"  # written to ``<log_dir>/<name>.log``
+
+
+OutputChoice = OutputMode | Literal["prefix", "quiet", "files"]
+"""An output mode, or its value."""
+
+
+def parse_output_mode(value: OutputChoice) -> OutputMode:
+    """``value`` as an ``OutputMode``; ``ValueError`` naming the three choices otherwise."""
+    try:
+        return OutputMode(value)
+    except ValueError:
+        raise ValueError(f"output must be prefix, quiet or files, got {value!r}") from None
 
 
 def describe_exit(code: int | None) -> str:
@@ -64,14 +87,21 @@ def describe_exit(code: int | None) -> str:
     return f"exited with code {code}"
 
 
+UNLIMITED_RETRIES = -1
+"""``respawn_max_retries`` value for no limit (as in ``ros2 launch``)."""
+
+
 @dataclass(frozen=True)
 class ProcessSpec:
-    """One process: ``argv`` to run; restarted ``respawn_delay`` s after it dies if ``respawn``."""
+    """One process: ``argv`` to run; restarted ``respawn_delay`` s after it dies if ``respawn``,
+    at most ``respawn_max_retries`` times in all (``UNLIMITED_RETRIES``: no limit); after that
+    it stays ``exited`` and a ``ProcessGaveUp`` event says so."""
 
     name: str
     argv: tuple[str, ...]
     respawn: bool = False
     respawn_delay: float = 1.0
+    respawn_max_retries: int = UNLIMITED_RETRIES
 
     def __post_init__(self) -> None:
         if not self.name:
@@ -80,6 +110,19 @@ class ProcessSpec:
             raise ValueError(f"argv of {self.name} must not be empty")
         if not self.respawn_delay >= 0.0:
             raise ValueError(f"respawn_delay must be >= 0, got {self.respawn_delay}")
+        check_max_retries(self.respawn_max_retries)
+
+    def may_restart(self, restarts: int) -> bool:
+        """Whether a child that has been restarted ``restarts`` times is started again."""
+        limit = self.respawn_max_retries
+        return self.respawn and (limit == UNLIMITED_RETRIES or restarts < limit)
+
+
+def check_max_retries(value: object, field: str = "respawn_max_retries") -> int:
+    """``value`` as a retry limit (an int >= -1, -1 for no limit); else ``ValueError`` naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < UNLIMITED_RETRIES:
+        raise ValueError(f"{field} must be an integer >= 0, or -1 for no limit, got {value!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -145,11 +188,13 @@ class ProcessReady(ProcessEvent):
 class ProcessExited(ProcessEvent):
     """The process ended with ``returncode`` (negative: killed by that signal).
 
-    ``requested``: it ended after ``stop_processes`` (kind ``stopped``), else it died.
+    ``requested``: it ended after ``stop_processes`` (kind ``stopped``), else it died;
+    ``will_respawn``: it died and will be started again (a ``ProcessRespawning`` follows).
     """
 
     returncode: int = 0
     requested: bool = False
+    will_respawn: bool = False
 
     @property
     def kind(self) -> EventKind:
@@ -172,6 +217,21 @@ class ProcessRespawning(ProcessEvent):
     @property
     def detail(self) -> str:
         return f"restart {self.restart}"
+
+
+@dataclass(frozen=True)
+class ProcessGaveUp(ProcessEvent):
+    """A child that died is not started again: its ``restarts`` used up ``respawn_max_retries``."""
+
+    restarts: int = 0
+
+    @property
+    def kind(self) -> EventKind:
+        return EventKind.GAVE_UP
+
+    @property
+    def detail(self) -> str:
+        return f"gave up after {self.restarts} restart(s)"
 
 
 @dataclass(frozen=True)

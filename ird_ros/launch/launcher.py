@@ -2,7 +2,7 @@
 
 CLI: ``scripts/launch_graph.py`` (see its ``--help``). Python::
 
-    from ird_ros.launch.launcher import GraphLauncher
+    from ird_ros.launch import GraphLauncher
 
     with GraphLauncher(nodes=["world", "inference"], record_dir="bags/run1",
                        private_domain=True, respawn=["world"]) as graph:
@@ -11,51 +11,42 @@ CLI: ``scripts/launch_graph.py`` (see its ``--help``). Python::
         ...                                 # talk to the nodes in graph.domain_id
     # leaving the block stops every process (SIGINT, SIGTERM, SIGKILL within 5 s)
 
-Three layers: ``ird_ros.launch.supervisor`` runs the processes (ROS-free: spawn, output, respawn,
-stop escalation, PR_SET_PDEATHSIG; why not ``ros2 launch`` is said there),
-``ird_ros.launch.readiness`` decides from the ROS graph when a node is ready, and this module sets up
-the domain and the environment, turns the node table into processes and ties the two together.
+A description plus an execution: ``GraphLauncher(...)`` builds a ``LaunchPlan``
+(``ird_ros.launch.plan``: start order, command lines, params file, respawn set and limits,
+recorder arguments, domain; every argument is checked there, before anything runs) and
+``start()`` executes it (``GraphLauncher.from_plan`` executes a plan built elsewhere). The
+execution uses ``ird_ros.launch.supervisor`` for the processes (ROS-free: spawn, output,
+respawn, stop escalation, PR_SET_PDEATHSIG; why not ``ros2 launch`` is said there) and
+``ird_ros.launch.readiness`` to decide from the ROS graph when a node is ready; this module
+sets up the domain and ties the two together.
 
-Processes. Each node runs as ``<python> -m <module> --ros-args --params-file <params>``
-(the node table is ``ird_ros.graph.NODES``), with this process's environment plus
-``ROS_DOMAIN_ID``, ``ROS_LOG_DIR`` and the DDS transport of ``ird_ros.graph.domains.dds_env``:
-loopback only (a Fast DDS profile bound to 127.0.0.1) unless ``IRD_DDS_NETWORK=1`` in the
-environment (``--dds-network`` of the CLI) asks for multi-machine use; the probe's own
-participant gets the same. Each child leads its own process group, has SIGINT/SIGTERM at
-their defaults and gets SIGTERM if the launcher dies, even by SIGKILL (see
-``ird_ros.launch.supervisor``).
+Processes. Each node runs with the plan's command line and environment (loopback-only DDS
+unless ``IRD_DDS_NETWORK=1``, ``--dds-network`` of the CLI; the probe's own participant gets
+the same). Each child leads its own process group, has SIGINT/SIGTERM at their defaults and
+gets SIGTERM if the launcher dies, even by SIGKILL.
 
-Recording. With ``record_dir`` a ``recorder`` node (``ird_ros.nodes.recorder``) is started too, with
-``-p output_dir:=<record_dir>``; its topics come from the params file's ``recorder`` section
-(empty = all topics) unless ``record_topics`` is given. It is stopped last, after the other
-nodes are gone, so the bag holds everything they published.
+Recording. With ``record_dir`` a ``recorder`` node (``ird_ros.nodes.recorder``) is started last.
+It is stopped last, after the other nodes are gone, so the bag holds everything they published.
 
 Readiness, decided by a probe node (``launcher``) in this process that polls the ROS graph
 (no fixed sleeps; every check repeats until it holds or the timeout passes): a node is ready
 when its process runs and it passes ``ird_ros.launch.readiness`` (in the graph, its services listed,
-its publishers new, a message on its ``ready_topics`` since it started; ``ready_topics`` are
-skipped, with a note, when a node it needs (``after``) is not launched, as they would never
-come). The recorder is ready when it subscribes to every topic the launched nodes publish and
+its publishers new, a message on its ``ready_topics`` since it started, unless the plan skips
+them). The recorder is ready when it subscribes to every topic the launched nodes publish and
 it records, and every latched message the probe received is counted in its bag;
 ``wait_ready`` keeps applying that last condition after the recorder was first ready, for
 latched messages the probe receives later. ``wait_ready`` fails with ``LaunchError`` listing,
 per node, what is still missing (or how a process died, with its last output).
 
 Death and respawn. A child that exits while the graph runs is reported (exit code or
-signal). Nodes listed in ``respawn`` (the argument, ``--respawn``, or the params file's
-``launcher`` section) are started again after ``respawn_delay`` seconds and go through
-readiness again. The recorder is never respawned (its bag folder exists by then).
+signal). Nodes in the plan's respawn set are started again after ``respawn_delay`` seconds
+and go through readiness again, at most ``respawn_max_retries`` times each; a node that keeps
+dying (e.g. exit code 2 on a bad parameter) is then reported as given up and stays down.
 
-Params file ``launcher`` section (same layout as the nodes' sections, so rcl accepts the file)::
-
-    launcher:
-      ros__parameters:
-        respawn: [rob, world]   # nodes to restart when they die (default: none)
-        respawn_delay: 1.0      # seconds before a restart (default 1.0)
-
-Domain. ``private_domain`` leases a free ID in 0..101 (``ird_ros.graph.domains.lease_domain``);
-otherwise ``domain_id``, else the inherited ``ROS_DOMAIN_ID`` (default 0), which must also be
-in 0..101: higher IDs put the DDS ports into Linux's ephemeral port range.
+Domain. ``private_domain`` leases a free ID in 0..101 (``ird_ros.graph.domains.lease_domain``)
+with a private ``ROS_LOG_DIR``; otherwise ``domain_id``, else the inherited ``ROS_DOMAIN_ID``
+(default 0), which must also be in 0..101: higher IDs put the DDS ports into Linux's
+ephemeral port range.
 
 Stopping (``stop()``, leaving the ``with`` block, or SIGINT/SIGTERM to the CLI): the nodes'
 process groups get SIGINT, then SIGTERM after 1.5 s, then SIGKILL after 2.5 s; the recorder
@@ -66,45 +57,31 @@ from __future__ import annotations
 
 import contextlib
 import os
-import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
-from ird_ros.graph.domains import DomainLease, check_domain_id, dds_env, dds_network, dds_process_env, lease_domain
-from ird_ros.launch.supervisor import (
+from ird_ros.graph.domains import DomainLease, dds_process_env, lease_domain
+from ird_ros.graph.nodes import NodeSpec
+from ird_ros.launch.events import (
     ChildInfo,
     ChildState,
     EventKind,
+    OutputChoice,
     OutputMode,
     ProcessEvent,
     ProcessExited,
+    ProcessGaveUp,
     ProcessReady,
-    ProcessSpec,
-    Supervisor,
     describe_exit,
 )
+from ird_ros.launch.plan import RECORDER, LaunchError, LaunchPlan, plan_launch
+from ird_ros.launch.readiness import ReadinessMonitor
+from ird_ros.launch.supervisor import Supervisor
 
-__all__ = [
-    "LaunchError",
-    "LaunchSpec",
-    "GraphLauncher",
-    "Event",
-    "EventKind",
-    "ChildState",
-    "REPO_ROOT",
-    "RECORDER",
-    "graph_specs",
-    "default_params_file",
-    "read_params_sections",
-    "describe_exit",
-]
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
-RECORDER = "recorder"
+__all__ = ["GraphLauncher", "Event"]
 
 # Stop schedule (seconds after stop() starts).
 NODES_SIGTERM_AT = 1.5
@@ -114,79 +91,16 @@ RECORDER_SIGKILL_AT = 4.5
 
 Event = ProcessEvent
 """What happened to a node: ``kind`` (an ``EventKind``: started, ready, died, respawning,
-stopped, signalled), ``node``, ``pid``, ``detail``, ``index``, ``time``."""
-
-
-class LaunchError(RuntimeError):
-    """The graph could not be started or did not become ready (the message says why)."""
-
-
-@dataclass(frozen=True)
-class LaunchSpec:
-    """How to run one node and when it counts as ready (see the module docstring).
-
-    ``module`` runs as ``python -m module``; ``script`` (if set) runs as ``python script``
-    instead. ``ros_args`` are appended after ``--ros-args --params-file FILE``.
-    """
-
-    name: str
-    module: str
-    publishes: tuple[str, ...] = ()
-    services: tuple[str, ...] = ()
-    ready_topics: tuple[str, ...] = ()
-    after: tuple[str, ...] = ()
-    script: str | None = None
-    ros_args: tuple[str, ...] = ()
-    default: bool = True  # started when no node list is given
-
-
-def graph_specs(*, optional: bool = False) -> list[LaunchSpec]:
-    """The project's nodes, from ``ird_ros.graph.NODES``: those started by default, and with
-    ``optional`` also those started only on request (the designer)."""
-    from ird_ros import graph
-
-    return [
-        LaunchSpec(
-            name=n.name,
-            module=n.module,
-            publishes=tuple(n.publishes),
-            services=tuple(n.services),
-            ready_topics=tuple(n.ready_topics),
-            after=tuple(n.after),
-            default=n.default,
-        )
-        for n in graph.NODES
-        if optional or n.default
-    ]
-
-
-def default_params_file() -> Path:
-    from ird_ros import graph
-
-    return REPO_ROOT / graph.PARAMS_FILE
-
-
-def read_params_sections(path: str | os.PathLike[str] | None) -> dict[str, dict[str, Any]]:
-    """``{node_name: ros__parameters dict}`` of a ROS params file (empty if no file)."""
-    if path is None or not Path(path).is_file():
-        return {}
-    import yaml
-
-    data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    out: dict[str, dict[str, Any]] = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            params = value.get("ros__parameters")
-            if isinstance(params, dict):
-                out[str(key).lstrip("/")] = params
-    return out
+gave_up, stopped, signalled), ``node``, ``pid``, ``detail``, ``index``, ``time``."""
 
 
 class GraphLauncher:
-    """Runs graph nodes as processes, decides readiness, reports deaths, respawns, stops.
+    """Runs a ``LaunchPlan``: node processes, readiness, death reports, respawns, stop.
+
+    The keywords are ``ird_ros.launch.plan.plan_launch``'s:
 
     Args:
-        nodes: node names to start (default: every node of ``ird_ros.graph``, or of ``specs``).
+        nodes: node names to start (default: every default node of ``ird_ros.graph``, or of ``specs``).
         params: ROS params file passed to every node (default ``msgs_config/params/graph.yaml``).
         record_dir: if set, also run the recorder, writing a bag into this (new) folder.
         record_topics: topics to record (default: the params file's ``recorder.topics``,
@@ -197,7 +111,9 @@ class GraphLauncher:
             a private ``ROS_LOG_DIR``.
         respawn: node names to restart when they die (added to the params file's list).
         respawn_delay: seconds before a restart (default: params file, else 1.0).
-        specs: a node table other than ``ird_ros.graph``'s (tests, stand-ins).
+        respawn_max_retries: restarts of one node before it is given up (-1: no limit;
+            default: params file, else 5).
+        specs: a node table other than ``ird_ros.graph.NODES`` (tests, stand-ins).
         output: children's stdout+stderr: ``"prefix"`` (printed as ``[name] line``),
             ``"quiet"`` (kept, shown in errors and ``output(name)``) or ``"files"``
             (``<log_dir>/<name>.log``).
@@ -218,87 +134,39 @@ class GraphLauncher:
         private_domain: bool = False,
         respawn: Iterable[str] = (),
         respawn_delay: float | None = None,
-        specs: Sequence[LaunchSpec] | None = None,
-        output: str = "prefix",
+        specs: Sequence[NodeSpec] | None = None,
+        output: OutputChoice = OutputMode.PREFIX,
         log_dir: str | os.PathLike[str] | None = None,
         echo: Callable[[str], None] | None = None,
         python: str | None = None,
         cwd: str | os.PathLike[str] | None = None,
         env: Mapping[str, str] | None = None,
+        respawn_max_retries: int | None = None,
     ) -> None:
-        try:
-            self.output_mode = OutputMode(output)
-        except ValueError:
-            raise ValueError(f"output must be prefix, quiet or files, got {output!r}") from None
-        if private_domain and domain_id is not None:
-            raise ValueError("give either domain_id or private_domain, not both")
-        if domain_id is not None:
-            domain_id = check_domain_id(domain_id, "domain_id")
-        self.params = Path(params) if params is not None else default_params_file()
-        if params is not None and not self.params.is_file():
-            raise LaunchError(f"params file {self.params} not found")
-        sections = read_params_sections(self.params)
-        table = list(specs) if specs is not None else graph_specs(optional=True)
-        by_name = {s.name: s for s in table}
-        names = list(nodes) if nodes is not None else [s.name for s in table if s.default]
-        unknown = [n for n in names if n not in by_name]
-        if unknown:
-            raise LaunchError(f"unknown node(s) {unknown}; known: {sorted(by_name)}")
-        if len(set(names)) != len(names):
-            raise LaunchError(f"node list has duplicates: {names}")
+        plan = plan_launch(
+            nodes=nodes, params=params, record_dir=record_dir, record_topics=record_topics, domain_id=domain_id,
+            private_domain=private_domain, respawn=respawn, respawn_delay=respawn_delay,
+            respawn_max_retries=respawn_max_retries, specs=specs, output=output, log_dir=log_dir, python=python,
+            cwd=cwd, env=env)
+        self._adopt(plan, echo)
 
-        launcher_params = sections.get("launcher", {})
-        respawn_set = set(respawn) | set(launcher_params.get("respawn", []) or [])
-        unknown = sorted(respawn_set - set(names) - {RECORDER})
-        if unknown:
-            raise LaunchError(f"respawn names node(s) not launched: {unknown}")
-        self.respawn_delay = float(
-            respawn_delay if respawn_delay is not None else launcher_params.get("respawn_delay", 1.0)
-        )
-        if not self.respawn_delay >= 0.0:
-            raise ValueError(f"respawn_delay must be >= 0, got {self.respawn_delay}")
+    @classmethod
+    def from_plan(cls, plan: LaunchPlan, echo: Callable[[str], None] | None = None) -> "GraphLauncher":
+        """A launcher that executes ``plan`` (built by ``plan_launch``)."""
+        launcher = cls.__new__(cls)
+        launcher._adopt(plan, echo)
+        return launcher
 
-        self.record_dir = Path(record_dir).resolve() if record_dir is not None else None
-        if self.record_dir is not None and self.record_dir.exists():
-            raise LaunchError(f"record dir {self.record_dir} already exists: choose a new folder")
-        rec_params = sections.get(RECORDER, {})
-        if record_topics is None:
-            record_topics = [t for t in (rec_params.get("topics") or []) if t]
-        self.record_topics = list(record_topics)
-        self.record_exclude = set(rec_params.get("exclude_topics") or ["/rosout", "/parameter_events"])
-
-        self._specs: dict[str, LaunchSpec] = {n: by_name[n] for n in names}
-        # a node whose inputs come from a node that is not launched never gets its ready topics
-        self._skip_ready_topics = {
-            n for n, s in self._specs.items() if s.ready_topics and any(d not in self._specs for d in s.after)
-        }
-        if self.record_dir is not None:
-            ros_args = ["-p", f"output_dir:={self.record_dir}"]
-            if record_topics is not None and self.record_topics:
-                ros_args += ["-p", "topics:=[" + ",".join(self.record_topics) + "]"]
-            rec_spec = by_name.get(RECORDER) or LaunchSpec(name=RECORDER, module="ird_ros.nodes.recorder")
-            self._specs[RECORDER] = replace(rec_spec, ros_args=tuple(rec_spec.ros_args) + tuple(ros_args))
-        # not the recorder: its output folder exists after the first start
-        self._respawn = {n for n in respawn_set if n in self._specs and n != RECORDER}
-
-        self.python = python or sys.executable
-        self.cwd = Path(cwd) if cwd is not None else REPO_ROOT
+    def _adopt(self, plan: LaunchPlan, echo: Callable[[str], None] | None) -> None:
+        self.plan = plan
         self._echo = echo or (lambda line: print(line, flush=True))
-        self._base_env = dict(os.environ if env is None else env)
-        dds_network(self._base_env)  # a bad IRD_DDS_NETWORK fails here, naming the variable
-        self._private = private_domain
+        self._cond = threading.Condition(threading.RLock())
         self._lease: DomainLease | None = None
         self._log_tmp: tempfile.TemporaryDirectory | None = None
-        self._domain_id = domain_id
-        self._log_dir = Path(log_dir) if log_dir is not None else None
+        self._domain_id: int | None = None
         self._env: dict[str, str] = {}
-        self._notes = ["the recorder is never respawned (its bag folder exists after the first start)"] \
-            if RECORDER in respawn_set else []
-
-        self._lock = threading.RLock()
-        self._cond = threading.Condition(self._lock)
         self._sup: Supervisor | None = None
-        self._monitor: Any = None  # ird_ros.launch.readiness.ReadinessMonitor (imports rclpy)
+        self._monitor: ReadinessMonitor | None = None
         self._started = False
         self._stopped = False
         self.stop_duration: float | None = None
@@ -312,16 +180,16 @@ class GraphLauncher:
 
     @property
     def env(self) -> dict[str, str]:
-        """The environment of the children (domain, discovery range, log dir)."""
+        """The environment of the children (domain, DDS transport, log dir)."""
         return dict(self._env)
 
     @property
     def node_names(self) -> list[str]:
-        return list(self._specs)
+        return self.plan.names
 
     def _infos(self) -> dict[str, ChildInfo]:
         if self._sup is None:
-            return {n: ChildInfo(n, None, ChildState.PENDING, 0.0, None, 0, None) for n in self._specs}
+            return {n: ChildInfo(n, None, ChildState.PENDING, 0.0, None, 0, None) for n in self.plan.names}
         return self._sup.infos()
 
     def pids(self) -> dict[str, int | None]:
@@ -346,68 +214,18 @@ class GraphLauncher:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
-    def _setup_environment(self) -> None:
-        if self._private:
-            self._lease = lease_domain(log_dir=self._log_dir)
-            self._domain_id = self._lease.domain_id
-            self._log_dir = Path(self._lease.log_dir)
-            env = self._lease.env(self._base_env)
-        else:
-            env = dict(self._base_env)
-            if self._domain_id is None:
-                try:
-                    self._domain_id = check_domain_id(env.get("ROS_DOMAIN_ID") or 0, "ROS_DOMAIN_ID")
-                except ValueError as exc:
-                    raise LaunchError(str(exc)) from None
-            if self._log_dir is None and env.get("ROS_LOG_DIR"):
-                self._log_dir = Path(env["ROS_LOG_DIR"])
-            dds_env(env)
-        if self._log_dir is None:
-            self._log_tmp = tempfile.TemporaryDirectory(prefix="ird_launch_log_")
-            self._log_dir = Path(self._log_tmp.name)
-        self._log_dir.mkdir(parents=True, exist_ok=True)
-        env["ROS_DOMAIN_ID"] = str(self._domain_id)
-        env["ROS_LOG_DIR"] = str(self._log_dir)
-        env["PYTHONUNBUFFERED"] = "1"
-        # children import this checkout's ird_ros (and tests' stand-ins) even if not installed
-        env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
-        self._env = env
-
-    def _argv(self, spec: LaunchSpec) -> tuple[str, ...]:
-        head = [self.python, spec.script] if spec.script else [self.python, "-m", spec.module]
-        tail = ["--ros-args"]
-        if self.params.is_file():
-            tail += ["--params-file", str(self.params)]
-        return tuple(head + tail + list(spec.ros_args))
-
     def start(self) -> None:
         """Start the probe and every node process (returns at once; see ``wait_ready``)."""
         if self._started:
             raise LaunchError("already started")
         self._started = True
         try:
-            self._setup_environment()
-            for note in self._notes:
+            log_dir = self._open_domain()
+            for note in self.plan.notes:
                 self._say(f"note: {note}")
-            for name in self._skip_ready_topics:
-                spec = self._specs[name]
-                deps = [d for d in spec.after if d not in self._specs]
-                self._say(f"note: {name} needs {', '.join(deps)} (not launched): "
-                          f"not waiting for {', '.join(spec.ready_topics)}")
-            self._sup = Supervisor(
-                [ProcessSpec(n, self._argv(s), respawn=n in self._respawn, respawn_delay=self.respawn_delay)
-                 for n, s in self._specs.items()],
-                env=self._env, cwd=self.cwd, output=self.output_mode, log_dir=self._log_dir, echo=self._echo,
-                on_event=self._on_event,
-            )
-            from ird_ros.launch.readiness import ReadinessMonitor  # imports rclpy
-
-            with dds_process_env(self._env):  # the probe's participant talks like the children
-                self._monitor = ReadinessMonitor(
-                    self._sup, self._specs, self.domain_id, self._env, skip_ready_topics=self._skip_ready_topics,
-                    recorder=RECORDER if RECORDER in self._specs else None, recorded=self._expected_recorded(),
-                    on_change=self._notify)
-            self._monitor.start()
+            self._sup = Supervisor(self.plan.process_specs(), env=self._env, cwd=self.plan.cwd,
+                                   output=self.plan.output, log_dir=log_dir, echo=self._echo, on_event=self._on_event)
+            self._monitor = self._start_probe(self._sup)
             try:
                 self._sup.start()
             except Exception as exc:
@@ -416,37 +234,59 @@ class GraphLauncher:
             self.stop()
             raise
 
+    def _open_domain(self) -> Path:
+        """Lease or take the domain, make the log folder, set the children's environment; return the folder."""
+        plan = self.plan
+        log_dir = plan.log_dir
+        if plan.domain.private:
+            self._lease = lease_domain(log_dir=log_dir)
+            self._domain_id, log_dir = self._lease.domain_id, Path(self._lease.log_dir)
+        else:
+            self._domain_id = plan.domain.fixed_id(plan.base_env)
+            if log_dir is None and plan.base_env.get("ROS_LOG_DIR"):
+                log_dir = Path(plan.base_env["ROS_LOG_DIR"])
+        if log_dir is None:
+            self._log_tmp = tempfile.TemporaryDirectory(prefix="ird_launch_log_")
+            log_dir = Path(self._log_tmp.name)
+        log_dir.mkdir(parents=True, exist_ok=True)
+        self._env = plan.environment(self._domain_id, log_dir)
+        return log_dir
+
+    def _start_probe(self, supervisor: Supervisor) -> ReadinessMonitor:
+        with dds_process_env(self._env):  # the probe's participant talks like the children
+            monitor = ReadinessMonitor(
+                supervisor, self.plan.specs, self.domain_id, self._env,
+                skip_ready_topics=self.plan.skipped_ready_topics,
+                recorder=RECORDER if self.plan.has_recorder else None, recorded=self.plan.recorded_topics,
+                on_change=self._notify)
+        monitor.start()
+        return monitor
+
     def _say(self, text: str) -> None:
         self._echo(f"[launcher] {text}")
 
     def _on_event(self, ev: ProcessEvent) -> None:
-        """Report deaths and restarts; wake ``wait_ready`` (runs outside the supervisor's lock)."""
+        """Report deaths, restarts and give-ups; wake ``wait_ready`` (runs outside the supervisor's lock)."""
         if isinstance(ev, ProcessExited) and not ev.requested:
-            respawn = ev.name in self._respawn
             self._say(f"node {ev.name} (pid {ev.pid}) {ev.detail}"
-                      + (f"; respawning in {self.respawn_delay:g} s" if respawn else ""))
-            if not respawn and self.output_mode is not OutputMode.PREFIX and self._sup is not None:
+                      + (f"; respawning in {self.plan.respawn_delay:g} s" if ev.will_respawn else ""))
+            if not ev.will_respawn and self.plan.output is not OutputMode.PREFIX and self._sup is not None:
                 tail = self._sup.output(ev.name, 15)
                 if tail:
                     self._say(f"last output of {ev.name}:\n{tail}")
+        elif isinstance(ev, ProcessGaveUp):
+            self._say(f"node {ev.name}: {ev.detail} (respawn_max_retries {self.plan.respawn_max_retries}); "
+                      "not respawned again")
         elif isinstance(ev, ProcessReady) and ev.restart:
             self._say(f"node {ev.name} (pid {ev.pid}) ready again after {ev.ready_after:.2f} s "
                       f"(restart {ev.restart})")
         self._notify()
 
-    def _expected_recorded(self) -> list[str]:
-        """Topics the recorder must record: what the launched nodes publish, filtered."""
-        topics: set[str] = set()
-        for name, spec in self._specs.items():
-            if name != RECORDER:
-                topics.update(spec.publishes)
-        if self.record_topics:
-            topics &= set(self.record_topics)
-        return sorted(topics - self.record_exclude)
-
     def _notify(self) -> None:
         with self._cond:
             self._cond.notify_all()
+
+    # ------------------------------------------------------------------ readiness
 
     def wait_ready(self, timeout: float = 60.0, nodes: Iterable[str] | None = None) -> dict[str, float]:
         """Block until every node (or ``nodes``) is ready; return seconds to ready per node.
@@ -456,36 +296,44 @@ class GraphLauncher:
         """
         if not self._started or self._sup is None or self._monitor is None:
             raise LaunchError("start() first")
-        names = list(nodes) if nodes is not None else list(self._specs)
+        sup, monitor = self._sup, self._monitor
+        names = list(nodes) if nodes is not None else self.plan.names
         deadline = time.monotonic() + timeout
         with self._cond:
             while True:
-                error = self._monitor.error
-                if error is not None:
-                    raise LaunchError(f"readiness probe failed: {error!r}") from error
-                infos = self._sup.infos()
+                if monitor.error is not None:
+                    raise LaunchError(f"readiness probe failed: {monitor.error!r}") from monitor.error
+                infos = sup.infos()
                 # after the recorder is ready, latched messages the probe got later must reach the bag
-                lagging = self._monitor.recorder_lag() if RECORDER in names else []
+                lagging = monitor.recorder_lag() if RECORDER in names else []
                 children = [infos[n] for n in names]
                 dead = [c for c in children if c.state in (ChildState.EXITED, ChildState.STOPPED)]
                 if dead:
-                    raise LaunchError("node(s) died before becoming ready:\n" + "\n".join(
-                        f"  {c.name} (pid {c.pid}) {describe_exit(c.returncode)}; last output:\n"
-                        + "\n".join("    " + line for line in self._sup.output(c.name, 15).splitlines())
-                        for c in dead))
+                    raise LaunchError(self._death_report(dead))
                 if all(c.state is ChildState.READY for c in children) and not lagging:
                     return {c.name: float(c.ready_after or 0.0) for c in children}
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    lines = []
-                    for c in children:
-                        if c.state is not ChildState.READY:
-                            what = "; ".join(self._monitor.missing(c.name, c.pid)) or c.state
-                            lines.append(f"  {c.name} (pid {c.pid}, {c.state}): {what}")
-                        elif c.name == RECORDER and lagging:
-                            lines.append(f"  {RECORDER}: " + "; ".join(lagging))
-                    raise LaunchError(f"graph not ready after {timeout:g} s:\n" + "\n".join(lines))
+                    raise LaunchError(f"graph not ready after {timeout:g} s:\n" + self._missing_report(children, lagging))
                 self._cond.wait(min(remaining, 0.5))
+
+    def _death_report(self, dead: Sequence[ChildInfo]) -> str:
+        assert self._sup is not None
+        return "node(s) died before becoming ready:\n" + "\n".join(
+            f"  {c.name} (pid {c.pid}) {describe_exit(c.returncode)}; last output:\n"
+            + "\n".join("    " + line for line in self._sup.output(c.name, 15).splitlines())
+            for c in dead)
+
+    def _missing_report(self, children: Sequence[ChildInfo], lagging: Sequence[str]) -> str:
+        assert self._monitor is not None
+        lines = []
+        for c in children:
+            if c.state is not ChildState.READY:
+                what = "; ".join(self._monitor.missing(c.name, c.pid)) or c.state
+                lines.append(f"  {c.name} (pid {c.pid}, {c.state}): {what}")
+            elif c.name == RECORDER and lagging:
+                lines.append(f"  {RECORDER}: " + "; ".join(lagging))
+        return "\n".join(lines)
 
     def wait_for_event(self, kind: EventKind | str, node: str, *, after: int = 0, timeout: float = 30.0) -> Event:
         """The first event of ``kind`` for ``node`` with index >= ``after`` (waits for it)."""
@@ -522,20 +370,23 @@ class GraphLauncher:
             return {n: i.returncode for n, i in self._infos().items()}
         self._stopped = True
         t0 = time.monotonic()
-        codes: dict[str, int | None] = {n: None for n in self._specs}
+        codes: dict[str, int | None] = {n: None for n in self.plan.names}
         if self._sup is not None:
-            nodes = [n for n in self._specs if n != RECORDER]
-            self._sup.stop_processes(nodes, NODES_SIGTERM_AT, NODES_SIGKILL_AT - NODES_SIGTERM_AT)
-            if RECORDER in self._specs:
+            self._sup.stop_processes([n for n in self.plan.names if n != RECORDER], NODES_SIGTERM_AT,
+                                     NODES_SIGKILL_AT - NODES_SIGTERM_AT)
+            if self.plan.has_recorder:
                 kill_at = max(RECORDER_SIGKILL_AT - (time.monotonic() - t0), 0.5)
                 term_at = min(RECORDER_SIGTERM_AFTER, kill_at - 0.5)
                 self._sup.stop_processes([RECORDER], term_at, kill_at - term_at)
         self.stop_duration = time.monotonic() - t0
-
         if self._monitor is not None:
             self._monitor.close()
         if self._sup is not None:
             codes = self._sup.shutdown()
+        self._release_domain()
+        return codes
+
+    def _release_domain(self) -> None:
         if self._lease is not None:
             self._lease.release()
             self._lease = None
@@ -543,4 +394,3 @@ class GraphLauncher:
             with contextlib.suppress(Exception):
                 self._log_tmp.cleanup()
             self._log_tmp = None
-        return codes

@@ -16,8 +16,8 @@ ready). A node is ready when all of these hold:
 
 The recorder (``recorded`` topics given) is ready when it is in the graph, subscribes to each
 of those topics, and, for each of them that is latched (transient local) and on which the
-probe itself received a message, its ``/recorder/status`` counts at least one recorded
-message; ``recorder_lag`` lists the latched messages still missing from the bag.
+probe itself received a message, its status (``names.TOPIC_RECORDER_STATUS``) counts at least
+one recorded message; ``recorder_lag`` lists the latched messages still missing from the bag.
 
 ``ReadinessMonitor`` runs the probe in a thread next to an ``ird_ros.launch.supervisor.Supervisor``:
 it checks every ``starting`` child, calls ``Supervisor.mark_ready`` once nothing is missing,
@@ -32,12 +32,12 @@ import json
 import os
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
-from ird_ros.launch.supervisor import ChildInfo, ChildState, Supervisor
-
-if TYPE_CHECKING:
-    from ird_ros.launch.launcher import LaunchSpec
+from ird_ros.graph import names
+from ird_ros.graph.nodes import NodeSpec
+from ird_ros.launch.events import ChildInfo, ChildState
+from ird_ros.launch.supervisor import Supervisor
 
 __all__ = ["GraphProbe", "ReadinessMonitor", "PROBE_NODE"]
 
@@ -94,13 +94,11 @@ class GraphProbe:
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
 
-        from ird_ros.nodes.recorder import STATUS_TOPIC
-
         def status(msg: Any) -> None:
             with contextlib.suppress(ValueError, AttributeError, KeyError, TypeError):
                 self._recorder_counts = dict(json.loads(msg.data)["counts"])
 
-        self._node.create_subscription(String, STATUS_TOPIC, status, QoSProfile(
+        self._node.create_subscription(String, names.TOPIC_RECORDER_STATUS, status, QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
@@ -139,7 +137,7 @@ class GraphProbe:
 
     def missing(
         self,
-        spec: "LaunchSpec",
+        spec: NodeSpec,
         pid: int,
         started_at: float,
         present: set[tuple[str, str]],
@@ -210,7 +208,7 @@ class ReadinessMonitor:
 
     Args:
         supervisor: runs the children named in ``specs``.
-        specs: what each child must offer (``LaunchSpec`` by name).
+        specs: what each child must offer (``NodeSpec`` by name).
         domain_id, env: as for ``GraphProbe``.
         skip_ready_topics: children not to wait for on their ``ready_topics``.
         recorder: the recorder's name, if one runs, and ``recorded``: the topics it must record.
@@ -220,7 +218,7 @@ class ReadinessMonitor:
     def __init__(
         self,
         supervisor: Supervisor,
-        specs: Mapping[str, "LaunchSpec"],
+        specs: Mapping[str, NodeSpec],
         domain_id: int,
         env: Mapping[str, str],
         *,

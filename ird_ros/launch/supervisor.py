@@ -7,18 +7,20 @@ restart the ones that die, stop everything in order) is this module; its vocabul
 borrowed from there: ``respawn``, ``respawn_delay``, ``sigterm_timeout``, ``sigkill_timeout``
 and process events (``ProcessStarted``, ``ProcessExited``, ...). Deciding when a ROS node is
 ready is ``ird_ros.launch.readiness``'s job; it tells the supervisor with ``mark_ready``. The
-vocabulary (states, specs, typed events) lives in ``ird_ros.launch.events``, re-exported here.
+vocabulary (states, specs, typed events) lives in ``ird_ros.launch.events``.
 
 Processes. Every child is the leader of its own process group (``setsid``), so a signal to
 the group also reaches the child's own workers. It starts with SIGINT/SIGTERM at their default
-dispositions (a parent started with ``&`` has SIGINT ignored, which children would inherit)
-and with ``PR_SET_PDEATHSIG=SIGTERM``, so it is told to stop even when the supervising process
-is killed with SIGKILL. Children are spawned from one long-lived thread because the kernel
-ties PDEATHSIG to the thread that forked the child, not to the process.
+dispositions and with ``PR_SET_PDEATHSIG=SIGTERM`` (``ird_ros.launch.process_groups``), so it is
+told to stop even when the supervising process is killed with SIGKILL. Children are spawned
+from one long-lived thread because the kernel ties PDEATHSIG to the thread that forked the
+child, not to the process.
 
 States (``ChildState``): pending -> starting -> ready (``mark_ready``); a child that dies is
-``exited``, then ``respawning`` for ``respawn_delay`` seconds when its spec says ``respawn``,
-then ``starting`` again; a child that ends after ``stop_processes`` is ``stopped``.
+``exited``, then, if its spec says ``respawn``, ``respawning`` for ``respawn_delay`` seconds and
+``starting`` again, at most ``respawn_max_retries`` times in all (-1: no limit): one that keeps
+dying, e.g. with exit code 2 on a bad parameter, is started ``1 + respawn_max_retries`` times,
+then stays ``exited`` (event ``ProcessGaveUp``). One that ends after ``stop_processes`` is ``stopped``.
 
 Stopping (``stop_processes(names, sigterm_timeout, sigkill_timeout)``): the process groups get
 SIGINT, SIGTERM ``sigterm_timeout`` s later, SIGKILL ``sigkill_timeout`` s after that; every
@@ -29,7 +31,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import ctypes
 import enum
 import os
 import queue
@@ -39,26 +40,29 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Callable, Iterable, Mapping, Sequence
+from typing import IO, Any, Callable, Iterable, Mapping, Sequence, TypeVar
 
-from ird_ros.launch import events as process_events
 from ird_ros.launch.events import (
     ChildInfo,
     ChildState,
     EventKind,
+    OutputChoice,
     OutputMode,
     ProcessEvent,
     ProcessExited,
+    ProcessGaveUp,
     ProcessReady,
     ProcessRespawning,
     ProcessSpec,
     ProcessStarted,
     SignalSent,
-    describe_exit,
+    parse_output_mode,
 )
+from ird_ros.launch.process_groups import child_preexec, group_alive
 
-# the vocabulary (states, specs, events) is re-exported: callers need only this module
-__all__ = [*process_events.__all__, "Supervisor", "set_parent_death_signal", "child_preexec", "group_alive"]
+__all__ = ["Supervisor"]
+
+_T = TypeVar("_T")
 
 REAP_TIMEOUT = 3.0
 """Seconds to wait, after SIGKILL, for the killed groups to be gone."""
@@ -70,70 +74,6 @@ class _Command(enum.Enum):
     SPAWN_ALL = enum.auto()
     EXITED = enum.auto()
     QUIT = enum.auto()
-
-
-# ------------------------------------------------------------------------ child set-up
-
-try:
-    _PRCTL: Any = ctypes.CDLL(None, use_errno=True).prctl  # resolved here, not after fork
-except (OSError, AttributeError):  # pragma: no cover - not Linux/glibc
-    _PRCTL = None
-_PR_SET_PDEATHSIG = 1
-
-
-def set_parent_death_signal(sig: int = signal.SIGTERM, parent_pid: int | None = None) -> None:
-    """Have the kernel send ``sig`` to this process when its parent dies (Linux ``prctl``).
-
-    With ``parent_pid``, exit at once if the parent is already gone (it died before the call
-    took effect, and the signal would never come). A no-op where ``prctl`` does not exist.
-    """
-    if _PRCTL is not None:
-        _PRCTL(_PR_SET_PDEATHSIG, int(sig))
-    if parent_pid is not None and os.getppid() != parent_pid:
-        os._exit(1)
-
-
-def child_preexec(parent_pid: int) -> Callable[[], None]:
-    """A ``preexec_fn``: default SIGINT/SIGTERM handling and SIGTERM when ``parent_pid`` dies."""
-
-    def setup() -> None:  # pragma: no cover - runs in the child between fork and exec
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        set_parent_death_signal(signal.SIGTERM, parent_pid)
-
-    return setup
-
-
-def group_alive(pgid: int) -> bool:
-    """True while a process of group ``pgid`` runs (zombies do not count).
-
-    A child's helper processes (multiprocessing's resource tracker, pool workers) are
-    re-parented to init when the child exits; their zombies stay in the group until init
-    reaps them (over a second in some containers, never in others), and ``killpg(pgid, 0)``
-    counts zombies. So the group's members are read from ``/proc/<pid>/stat``.
-    """
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # pragma: no cover
-        return True
-    try:
-        entries = os.listdir("/proc")
-    except OSError:  # pragma: no cover - no procfs: trust killpg
-        return True
-    for entry in entries:
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat", "rb") as f:
-                fields = f.read().rsplit(b")", 1)[1].split()
-        except OSError:
-            continue
-        # fields after "(comm)": state, ppid, pgrp, ...
-        if int(fields[2]) == pgid and fields[0] != b"Z":
-            return True
-    return False
 
 
 @dataclass
@@ -177,16 +117,13 @@ class Supervisor:
         *,
         env: Mapping[str, str] | None = None,
         cwd: str | os.PathLike[str] | None = None,
-        output: OutputMode | str = OutputMode.QUIET,
+        output: OutputChoice = OutputMode.QUIET,
         log_dir: str | os.PathLike[str] | None = None,
         echo: Callable[[str], None] | None = None,
         on_event: Callable[[ProcessEvent], None] | None = None,
         tail_lines: int = 60,
     ) -> None:
-        try:
-            self.output_mode = OutputMode(output)
-        except ValueError:
-            raise ValueError(f"output must be prefix, quiet or files, got {output!r}") from None
+        self.output_mode = parse_output_mode(output)
         if self.output_mode is OutputMode.FILES and log_dir is None:
             raise ValueError("log_dir is needed for output='files'")
         names = [s.name for s in specs]
@@ -238,31 +175,29 @@ class Supervisor:
                        timeout: float = 30.0) -> ProcessEvent:
         """The first event of ``kind`` for ``name`` with index >= ``after`` (waits for it)."""
         kind = EventKind(kind)
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while True:
-                for ev in self._events[after:]:
-                    if ev.kind == kind and ev.name == name:
-                        return ev
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise TimeoutError(f"no {kind.value!r} event for {name} within {timeout:g} s; events: "
-                                       f"{[(e.kind.value, e.name) for e in self._events]}")
-                self._cond.wait(min(remaining, 0.5))
+        return self._wait_for(
+            lambda: next((e for e in self._events[after:] if e.kind == kind and e.name == name), None), timeout,
+            lambda: f"no {kind.value!r} event for {name} within {timeout:g} s; events: "
+                    f"{[(e.kind.value, e.name) for e in self._events]}")
 
     def wait_for_output(self, name: str, text: str, timeout: float = 30.0) -> str:
         """The first kept line of ``name`` containing ``text`` (waits for it)."""
+        tail = self._children[name].tail
+        return self._wait_for(
+            lambda: next((line for line in tail if text in line), None), timeout,
+            lambda: f"{name} did not print {text!r} within {timeout:g} s:\n" + "\n".join(tail))
+
+    def _wait_for(self, find: Callable[[], _T | None], timeout: float, failure: Callable[[], str]) -> _T:
+        """``find()``'s first non-None answer (called with the lock held; waits for changes);
+        ``TimeoutError(failure())`` after ``timeout`` s."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while True:
-                for line in self._children[name].tail:
-                    if text in line:
-                        return line
+            while (found := find()) is None:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    raise TimeoutError(f"{name} did not print {text!r} within {timeout:g} s:\n"
-                                       + "\n".join(self._children[name].tail))
+                    raise TimeoutError(failure())
                 self._cond.wait(min(remaining, 0.5))
+            return found
 
     # -------------------------------------------------------------- events
 
@@ -373,9 +308,7 @@ class Supervisor:
     def _run(self) -> None:
         pending: list[tuple[float, _Child]] = []  # (due time, child) respawns
         while True:
-            timeout = None
-            if pending:
-                timeout = max(0.0, min(t for t, _ in pending) - time.monotonic())
+            timeout = max(0.0, min(t for t, _ in pending) - time.monotonic()) if pending else None
             try:
                 cmd, arg = self._commands.get(timeout=timeout)
             except queue.Empty:
@@ -383,31 +316,35 @@ class Supervisor:
             if cmd is _Command.QUIT:
                 return
             if cmd is _Command.SPAWN_ALL:
-                done, errors = arg
-                try:
-                    for child in self._children.values():
-                        self._deliver([self._spawn(child)])
-                except BaseException as exc:  # noqa: BLE001 - raised by start()
-                    errors.append(exc)
-                done.set()
+                self._spawn_all(*arg)
             elif cmd is _Command.EXITED:
                 self._on_exit(*arg, pending)
             now = time.monotonic()
-            due = [c for t, c in pending if t <= now]
+            for child in [c for t, c in pending if t <= now]:
+                self._respawn(child)
             pending[:] = [(t, c) for t, c in pending if t > now]
-            for child in due:
-                with self._lock:  # stop_processes sets _stopping, then collects the processes
-                    if self._stopping:
-                        continue
-                    try:
-                        result: ProcessEvent | str = self._spawn(child)
-                    except Exception as exc:  # noqa: BLE001 - the child stays exited
-                        child.state = ChildState.EXITED
-                        result = f"[supervisor] {child.spec.name}: respawn failed: {exc}"
-                if isinstance(result, str):
-                    self._echo(result)
-                else:
-                    self._deliver([result])
+
+    def _spawn_all(self, done: threading.Event, errors: list[BaseException]) -> None:
+        try:
+            for child in self._children.values():
+                self._deliver([self._spawn(child)])
+        except BaseException as exc:  # noqa: BLE001 - raised by start()
+            errors.append(exc)
+        done.set()
+
+    def _respawn(self, child: _Child) -> None:
+        with self._lock:  # stop_processes sets _stopping, then collects the processes
+            if self._stopping:
+                return
+            try:
+                result: ProcessEvent | str = self._spawn(child)
+            except Exception as exc:  # noqa: BLE001 - the child stays exited
+                child.state = ChildState.EXITED
+                result = f"[supervisor] {child.spec.name}: respawn failed: {exc}"
+        if isinstance(result, str):
+            self._echo(result)
+        else:
+            self._deliver([result])
 
     def _on_exit(self, child: _Child, proc: subprocess.Popen, code: int, pending: list) -> None:
         events = []
@@ -419,15 +356,22 @@ class Supervisor:
                 child.state = ChildState.STOPPED
                 events.append(self._record(ProcessExited, child, returncode=code, requested=True))
             else:
-                child.state = ChildState.EXITED
-                events.append(self._record(ProcessExited, child, returncode=code, requested=False))
-                if child.spec.respawn:
-                    child.state = ChildState.RESPAWNING
-                    child.restarts += 1
-                    events.append(self._record(ProcessRespawning, child, restart=child.restarts,
-                                               delay=child.spec.respawn_delay))
-                    pending.append((time.monotonic() + child.spec.respawn_delay, child))
+                events += self._record_death(child, code, pending)
         self._deliver(events)
+
+    def _record_death(self, child: _Child, code: int, pending: list) -> list[ProcessEvent]:
+        """Events of an unrequested exit (lock held): restart ``child`` if its spec allows."""
+        spec = child.spec
+        respawn = spec.may_restart(child.restarts)
+        child.state = ChildState.RESPAWNING if respawn else ChildState.EXITED
+        events = [self._record(ProcessExited, child, returncode=code, requested=False, will_respawn=respawn)]
+        if respawn:
+            child.restarts += 1
+            events.append(self._record(ProcessRespawning, child, restart=child.restarts, delay=spec.respawn_delay))
+            pending.append((time.monotonic() + spec.respawn_delay, child))
+        elif spec.respawn:
+            events.append(self._record(ProcessGaveUp, child, restarts=child.restarts))
+        return events
 
     # -------------------------------------------------------------- stop
 
@@ -476,8 +420,7 @@ class Supervisor:
             self._wait_a_moment()
 
     def _wait_a_moment(self) -> None:
-        """Wait up to 20 ms (woken early by an exit event)."""
-        with self._cond:
+        with self._cond:  # up to 20 ms, woken early by an exit event
             self._cond.wait(0.02)
 
     def shutdown(self, timeout: float = 2.0) -> dict[str, int | None]:

@@ -30,6 +30,7 @@ callback.
 from __future__ import annotations
 
 import time
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ from nav_msgs.msg import OccupancyGrid
 from rclpy.node import Node
 
 from ird_core.designer.queries import SimulatedDesigner
+from ird_core.vocabulary import QueryEvent, values
 from ird_msgs.msg import ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
 from ird_msgs.srv import AnswerQuery
 from ird_ros import conversions as conv
@@ -44,14 +46,22 @@ from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
-from ird_ros.runtime.offload import service_qos
+from ird_ros.runtime.offload import BUSY_PREFIX, service_qos
+from ird_ros.stamps import stamp_ns, stamp_seconds
 
-__all__ = ["DesignerNode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict", "main"]
+__all__ = ["DesignerNode", "DesignerMode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict", "main"]
 
-MODES = ("simulated", "web")
+class DesignerMode(StrEnum):
+    """Who answers: the node itself on the true returns, or a person on the web page."""
+
+    SIMULATED = "simulated"
+    WEB = "web"
+
+
+MODES: tuple[str, ...] = values(DesignerMode)
 
 PARAMETERS: dict[str, Param] = {
-    "mode": Param("simulated", "simulated: answer every open query itself; web: a person answers on a page",
+    "mode": Param(DesignerMode.SIMULATED.value, "simulated: answer every open query itself; web: a person answers on a page",
                   choices=MODES, read_only=True),
     "beta": Param(1.0, "Simulated designer's rationality (Boltzmann beta on the options' true returns)",
                   min_value=0.0),
@@ -66,14 +76,6 @@ PARAMETERS: dict[str, Param] = {
 
 HISTORY_SETTLE = 0.2
 """Seconds without a new /ird/queries record before open proposals are answered."""
-
-
-def _stamp_s(stamp: Any) -> float:
-    return int(stamp.sec) + int(stamp.nanosec) * 1e-9
-
-
-def _stamp_ns(stamp: Any) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def world_dict(terrain: conv.TerrainGridData, start: tuple[int, int] | None, stamp: float) -> dict[str, Any]:
@@ -102,12 +104,12 @@ class DesignerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_DESIGNER, **kwargs)
         p = declare_all(self, PARAMETERS)
-        self.mode = p["mode"]
+        self.mode = DesignerMode(p["mode"])
         self.answer_timeout, self.retry_period = float(p["answer_timeout"]), float(p["retry_period"])
         self.designer = SimulatedDesigner(float(p["beta"]), int(p["seed"]))
         self.records: list[QueryRecord] = []  # every /ird/queries message, in arrival order
         self._events_key: tuple[int, int] | None = None
-        self._events: list[qr.QueryEvent] = []
+        self._events: list[qr.QueryRecordData] = []
         self.terrain: conv.TerrainGridData | None = None
         self.terrain_ns = 0  # header stamp (ns) of the world's terrain
         self.proxy: ProxyReward | None = None
@@ -118,7 +120,7 @@ class DesignerNode(Node):
         self._shown: set[tuple[int, str, int]] = set()  # (query id, event, stamp) forwarded to the page
         self._client = self.create_client(AnswerQuery, names.SRV_ANSWER, qos_profile=service_qos())
         self.web: Any = None
-        if self.mode == "web":
+        if self.mode is DesignerMode.WEB:
             from ird_ros.web.server import WebDesigner  # only the web mode needs the HTTP stack
 
             self.web = WebDesigner(p["host"], int(p["port"]), self._web_answer, logger=self.get_logger())
@@ -155,7 +157,7 @@ class DesignerNode(Node):
         except ValueError as exc:
             self.get_logger().error(f"ignoring a bad terrain: {exc}")
             return
-        self.terrain_ns = _stamp_ns(msg.header.stamp)
+        self.terrain_ns = stamp_ns(msg.header.stamp)
         self._show_world()
         self._update()
 
@@ -172,7 +174,7 @@ class DesignerNode(Node):
         self.risk = msg
         self._show_posterior()
 
-    def events(self) -> list[qr.QueryEvent]:
+    def events(self) -> list[qr.QueryRecordData]:
         """The decoded records of the current world (needs the terrain's geometry to map poses to
         cells); records stamped before the world's terrain belong to a forgotten world."""
         if self.terrain is None:
@@ -182,7 +184,7 @@ class DesignerNode(Node):
             return self._events
         out = []
         for msg in self.records:
-            if _stamp_ns(msg.header.stamp) < self.terrain_ns:
+            if stamp_ns(msg.header.stamp) < self.terrain_ns:
                 continue
             try:
                 out.append(qr.event_from_msg(msg, resolution=self.terrain.resolution, origin=self.terrain.origin,
@@ -197,9 +199,9 @@ class DesignerNode(Node):
         if self.web is not None:
             new = [ev for ev in events if (ev.query_id, ev.event, ev.stamp_ns) not in self._shown]
             for ev in new:
-                (self.web.show_query if ev.event == qr.PROPOSED else self.web.show_answer)(qr.record_dict(ev))
+                (self.web.show_query if ev.event is QueryEvent.PROPOSED else self.web.show_answer)(qr.record_dict(ev))
                 self._shown.add((ev.query_id, ev.event, ev.stamp_ns))
-            if any(ev.event == qr.ANSWERED for ev in new):
+            if any(ev.event is QueryEvent.ANSWERED for ev in new):
                 self._show_posterior()  # the posterior may have arrived before its answer's record
         elif self.proxy is not None and time.monotonic() - self._last_record >= HISTORY_SETTLE:
             for proposal in qr.open_queries(events):
@@ -207,7 +209,7 @@ class DesignerNode(Node):
 
     # ------------------------------------------------------------------ simulated mode
 
-    def _answer_simulated(self, proposal: qr.QueryEvent) -> None:
+    def _answer_simulated(self, proposal: qr.QueryRecordData) -> None:
         key = (proposal.query_id, proposal.stamp_ns)
         if key in self._in_flight or key in self._done or not self._client.service_is_ready():
             return
@@ -220,7 +222,8 @@ class DesignerNode(Node):
             self._done.add(key)
             return
         chosen = self.designer.answer(returns)
-        request = AnswerQuery.Request(query_id=proposal.query_id, chosen=chosen, beta=0.0, answered_by="simulated")
+        request = AnswerQuery.Request(query_id=proposal.query_id, chosen=chosen, beta=0.0,
+                                      answered_by=DesignerMode.SIMULATED.value)
         self._in_flight.add(key)
         self.get_logger().info(f"query {proposal.query_id}: true returns {np.round(returns, 3).tolist()}, "
                                f"answering option {chosen}")
@@ -234,7 +237,7 @@ class DesignerNode(Node):
             return  # retried by the timer
         if response.success:
             self._done.add(key)
-        elif response.message.startswith("busy"):
+        elif response.message.startswith(BUSY_PREFIX):
             self.get_logger().info(f"query {key[0]}: {response.message} (retrying)")
         else:
             self._done.add(key)
@@ -254,21 +257,22 @@ class DesignerNode(Node):
         try:
             post = conv.posterior_from_msg(self.posterior, field=names.TOPIC_POSTERIOR)
             risk = None if self.risk is None else risk_dict(conv.occupancy_grid_from_msg(self.risk),
-                                                            _stamp_s(self.risk.header.stamp))
+                                                            stamp_seconds(self.risk.header.stamp))
         except ValueError as exc:
             self.get_logger().error(f"ignoring a bad posterior or risk map: {exc}")
             return
         # An answer's record carries its posterior's stamp; a posterior without one is /ird/infer's.
         stamp = self.posterior.header.stamp
         num_answers = next((int(r.num_answers) for r in reversed(self.records)
-                            if r.event == qr.ANSWERED and r.header.stamp == stamp), 0)
-        self.web.show_posterior(posterior_dict(post, num_answers, _stamp_s(self.posterior.header.stamp)), risk)
+                            if r.event == QueryEvent.ANSWERED and r.header.stamp == stamp), 0)
+        self.web.show_posterior(posterior_dict(post, num_answers, stamp_seconds(self.posterior.header.stamp)), risk)
 
     def _web_answer(self, query_id: int, chosen: int) -> tuple[bool, str]:
         """``on_answer`` of the page: runs in the web server's thread, blocks until the reply."""
         if not self._client.service_is_ready():
             return False, f"inference node unavailable ({names.SRV_ANSWER} is not served)"
-        request = AnswerQuery.Request(query_id=int(query_id), chosen=int(chosen), beta=0.0, answered_by="web")
+        request = AnswerQuery.Request(query_id=int(query_id), chosen=int(chosen), beta=0.0,
+                                      answered_by=DesignerMode.WEB.value)
         try:
             response = self._client.call(request, timeout_sec=self.answer_timeout)
         except Exception as exc:  # noqa: BLE001 - the page shows why instead of a dead request

@@ -8,43 +8,26 @@ Run: ``python -m ird_ros.nodes.inference --ros-args --params-file msgs_config/pa
 ``ird_ros.conversions``, the arguments checked by the library (``GridMDP``,
 ``planning.check_start``, ``inference.check_posterior_arguments``), and only the node's own
 resource limits (``max_horizon``, ``max_num_samples``, ``max_map_values``) are checked here.
-A good request is sampled with ``ird_core.posterior.sample_posterior`` in a worker process and
-the result is returned and published on ``/ird/posterior`` (reliable, transient local). The
-posterior of a seeded request is exactly ``sample_posterior(proxy_weights, GridMDP(training_map,
-(start_row, start_col), horizon), beta, method, num_samples, seed, prior_sigma, **settings)``
-where ``settings`` holds those of ``num_chains``, ``warmup``, ``thin``, ``num_proxy_samples``
-that the node's parameters set (by default none: the library's defaults), and the map's float32
-values are used as float64.
+A good request is sampled in a worker process by :func:`ird_ros.jobs.inference.run_inference`
+(the exact library call, convergence, proxy map and training worlds are documented in
+:mod:`ird_ros.jobs.inference`), and the result is returned and published on ``/ird/posterior``
+(reliable, transient local).
 
-Convergence (``/ird/infer`` and ``/ird/answer``): unless ``target_r_hat`` is 0 or ``thin`` is set,
-``settings`` also holds ``until_converged=RunUntil(target_r_hat, min_ess, max_iterations=
-max_iterations, time_budget_s=time_budget or None)`` (``ird_core.posterior.sampler.RunUntil``): the same
-chains are extended until the split R-hat is at most ``target_r_hat`` and the bulk ESS at least
-``max(min_ess, num_samples / 2)``, or a bound stops them, then thinned to ``num_samples``; so the
-number of samples asked for does not decide whether the chains mix. The iteration cap is the
-deterministic bound (a seeded request gives the same posterior on any machine); the time budget
-is a safety stop only. An unconverged run is still ``success: true`` (its samples are valid draws
-of a run that was too short, and the client decides), with the response's ``converged`` False and
-a message naming the bound: ``not converged: time budget 60 s spent after ... iterations per
-chain, R-hat ... (target <= 1.05), ESS ... (target >= ...)``. The posterior message's
-``converged`` is the sampler's verdict (with ``until_converged`` its target, stricter than 1.1).
-A set ``thin`` means fixed-length chains (``ceil(num_samples / num_chains) * thin`` iterations).
+Convergence (``/ird/infer`` and ``/ird/answer``): an unconverged run is still ``success: true``
+(its samples are valid draws of a run that was too short, and the client decides), with the
+response's ``converged`` False and a message naming the bound: ``not converged: time budget 60 s
+spent after ... iterations per chain, R-hat ... (target <= 1.05), ESS ... (target >= ...)``. The
+posterior message's ``converged`` is the sampler's verdict (with ``until_converged`` its target,
+stricter than ``ird_core.posterior.R_HAT_CONVERGED``).
 
 The proxy map (latent_classifier): with ``proxy_map`` non-empty, the proxy weights apply to
-``proxy_map``'s layers. ``phi~(w~)`` (``proxy_features`` of sample_posterior) is
-``ird_core.posterior.proxy_feature_counts`` of the proxy planned on ``proxy_map`` (same grid,
-start and horizon) with ``training_map``'s features as the hypothesis features. For Sample-Z the
-proxy prior samples are drawn in the proxy's space (``proxy_prior_samples(N, p, sigma, seed)``,
-as ``ird_core.worlds.lavaland.proxy_prior_features`` does) and counted the same way
-(``proxy_sample_features``). See :func:`proxy_map_terms` and :func:`run_inference`; the
-request's ``p`` proxy weights are recorded in the posterior as they are.
+``proxy_map``'s layers (same grid as ``training_map``).
 
 Several training worlds (docs/spec.md section 7): each ``training_worlds[i]`` (TrainingWorld) is one
 more ``ProxyObservation`` after the request's own training map; its ``training_map`` must have the
 request's layers (the same hypothesis space, any grid size), its ``proxy_map`` is optional as
 above, empty ``proxy_weights`` = the request's. Bad fields fail naming ``training_worlds[i].<field>``.
-The posterior is then exactly ``sample_joint_posterior(job_observations(job), beta, method,
-num_samples, seed, prior_sigma, **settings)``; an empty list keeps the single-proxy path above.
+An empty list keeps the single-proxy posterior.
 
 Responsiveness: the service callback is a coroutine that awaits the worker process
 (``node_main.WorkerPool``); the executor keeps serving parameters and other requests meanwhile.
@@ -75,7 +58,6 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -84,22 +66,25 @@ from rclpy.node import Node
 
 from ird_core import checks
 from ird_core import planning as core_planning
-from ird_core import posterior as core_inference
 from ird_core.checks import MAX_ABS_FEATURE, PRIOR_SIGMA_RANGE
-from ird_core.designer import queries as core_queries
 from ird_core.mdp import GridMDP
-from ird_core.posterior.sampler import RunUntil
+from ird_core.posterior import Posterior
+from ird_core.vocabulary import QueryEvent, QueryStrategy, ZMethod, parse
 from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior
 from ird_msgs.srv import AnswerQuery, InferReward, ProposeQuery
 from ird_ros import conversions as conv
 from ird_ros.graph import names
-from ird_ros.jobs.inference_queries import Evidence, QueryJob, resample_seed, run_query
+from ird_ros.jobs.inference import ExtraWorld, InferenceJob, ResampleJob, run_inference, run_resample, sampler_settings
+from ird_ros.jobs.inference_queries import ProposalRecord, QueryJob, WorldEvidence, resample_seed, run_query
 from ird_ros.runtime.node_main import Arrivals, exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
-from ird_ros.runtime.offload import Offload, OffloadError, service_qos
+from ird_ros.runtime.offload import BUSY_PREFIX, Offload, OffloadError, service_qos
+from ird_ros.stamps import stamp_key
 
-__all__ = ["InferenceNode", "InferenceJob", "ExtraWorld", "ResampleJob", "job_observations", "SamplerSettings", "PARAMETERS", "proxy_map_terms",
-           "run_inference", "run_resample", "main"]
+__all__ = ["InferenceNode", "PARAMETERS", "main"]
+
+TEST_MAP_TOPICS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+"""Where /ird/query's default map is looked up, in order: the hypothesis space first."""
 
 MAP_WAIT = 10.0  # seconds /ird/query waits for the latched test map it defaults to (discovery lags)
 
@@ -111,7 +96,7 @@ class _MapMissing(ValueError):
 PARAMETERS: dict[str, Param] = {
     "default_prior_sigma": Param(1.0, "Prior standard deviation used when a request has prior_sigma 0",
                                  min_value=PRIOR_SIGMA_RANGE[0], max_value=PRIOR_SIGMA_RANGE[1]),
-    # The sampler settings are passed to sample_posterior only when set (see SamplerSettings).
+    # The sampler settings are passed to sample_posterior only when set (see ird_core.posterior.SamplerSettings).
     "num_chains": Param(0, "MCMC chains run as one batch (0 = the library's default)", min_value=0,
                         max_value=100000),
     "warmup": Param(-1, "MCMC warm-up steps per chain (-1 = the library's default)", min_value=-1,
@@ -145,167 +130,23 @@ PARAMETERS: dict[str, Param] = {
 }
 
 
-@dataclass(frozen=True)
-class SamplerSettings:
-    """The node's sampler parameters; ``None`` = unset, so the library's default applies."""
-
-    num_chains: int | None = None
-    warmup: int | None = None
-    thin: int | None = None
-    num_proxy_samples: int | None = None
-    until_converged: RunUntil | None = None
-
-    @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> "SamplerSettings":
-        """From the parameter values, whose sentinels (0, or -1 for ``warmup``) mean unset;
-        ``until_converged`` unless ``target_r_hat`` is 0 or ``thin`` is set.
-
-        Raises:
-            ValueError: ``until_converged.r_hat`` for a ``target_r_hat`` in (0, 1).
-        """
-        thin = int(values["thin"]) or None
-        run = None
-        if float(values["target_r_hat"]) > 0 and thin is None:
-            budget = float(values["time_budget"])
-            run = RunUntil(r_hat=float(values["target_r_hat"]), min_ess=float(values["min_ess"]),
-                           max_iterations=int(values["max_iterations"]), time_budget_s=budget if budget > 0 else None)
-        return cls(
-            num_chains=int(values["num_chains"]) or None,
-            warmup=int(values["warmup"]) if values["warmup"] >= 0 else None,
-            thin=thin,
-            num_proxy_samples=int(values["num_proxy_samples"]) or None,
-            until_converged=run,
-        )
-
-    def kwargs(self) -> dict[str, Any]:
-        """The keyword arguments of sample_posterior that are set."""
-        return {k: v for k, v in vars(self).items() if v is not None}
+def _record_msg(query_id: int, record: ProposalRecord, event: QueryEvent,
+                num_answers: int, stamp: Any, **answer: Any) -> QueryRecord:
+    """The ``/ird/queries`` record of a proposal (``answer`` empty) or of its answer."""
+    return conv.query_record_to_msg(
+        query_id=query_id, event=event, strategy=record.strategy, options=record.options,
+        feature_names=record.feature_names, option_features=record.option_features,
+        information_gain=record.information_gain, num_answers=num_answers, stamp=stamp, **answer)
 
 
-@dataclass(frozen=True)
-class ExtraWorld:
-    """One validated ``training_worlds[i]``: its training MDP ``(H_i, W_i, d)``, its proxy-map MDP
-    ``(H_i, W_i, p_i)`` or ``None``, and its proxy weights ``(p_i,)``."""
-
-    train_mdp: GridMDP
-    proxy_mdp: GridMDP | None
-    proxy_weights: np.ndarray
-
-
-@dataclass(frozen=True)
-class InferenceJob:
-    """A validated request, as the worker process gets it.
-
-    Attributes:
-        train_mdp: the training MDP on the hypothesis features ``(H, W, d)`` (``training_map``).
-        proxy_mdp: the same grid on the proxy's features ``(H, W, p)`` (``proxy_map``), or ``None``
-            when the proxy's weights apply to the training map's layers.
-        proxy_weights: ``(p,)``.
-        beta, method, num_samples, seed, prior_sigma: as sample_posterior.
-        sampler: the node's sampler settings.
-        extra_worlds: the request's ``training_worlds`` (each one more ProxyObservation).
-    """
-
-    train_mdp: GridMDP
-    proxy_mdp: GridMDP | None
-    proxy_weights: np.ndarray
-    beta: float
-    method: str
-    num_samples: int
-    seed: int
-    prior_sigma: float
-    sampler: SamplerSettings
-    extra_worlds: tuple[ExtraWorld, ...] = ()
-
-
-def proxy_map_terms(
-    training_features: np.ndarray,
-    proxy_features: np.ndarray,
-    start: tuple[int, int],
-    horizon: int,
-    proxy_weights: np.ndarray,
-    method: str,
-    prior_sigma: float,
-    seed: int,
-    num_proxy_samples: int,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """``phi~(w~)`` (d,) and, for Sample-Z, the ``phi_i`` (N, d) of a proxy defined on a proxy map.
-
-    The proxy (and each prior proxy) acts on ``proxy_features`` (H, W, p); its counts are taken in
-    ``training_features`` (H, W, d) by ``ird_core.posterior.proxy_feature_counts``.
-    """
-    proxy_mdp = GridMDP(proxy_features, start, horizon)
-    phi = core_inference.proxy_feature_counts(proxy_mdp, proxy_weights, training_features)
-    if method != "sample_z":
-        return phi, None
-    samples = core_inference.proxy_prior_samples(num_proxy_samples, proxy_mdp.num_features, prior_sigma, seed)
-    return phi, core_inference.proxy_feature_counts(proxy_mdp, samples, training_features)
-
-
-def job_observations(job: InferenceJob, num_proxy_samples: int) -> list[core_inference.ProxyObservation]:
-    """One ProxyObservation per training world: the request's own, then ``training_worlds`` in order.
-
-    A world with a proxy map gets its ``phi~(w~)`` and Sample-Z ``phi_i`` from :func:`proxy_map_terms`
-    (the same ``seed``, so every world plans the same prior proxies)."""
-    worlds = [ExtraWorld(job.train_mdp, job.proxy_mdp, job.proxy_weights), *job.extra_worlds]
-    out = []
-    for world in worlds:  # a few worlds, each one batched MDP pass
-        phi = sample_phi = None
-        train = world.train_mdp
-        if world.proxy_mdp is not None:
-            phi, sample_phi = proxy_map_terms(train.features, world.proxy_mdp.features, train.start, train.horizon,
-                                              world.proxy_weights, job.method, job.prior_sigma, job.seed,
-                                              num_proxy_samples)
-        out.append(core_inference.ProxyObservation(world.proxy_weights, train, proxy_features=phi,
-                                                   proxy_sample_features=sample_phi))
-    return out
-
-
-def run_inference(job: InferenceJob) -> core_inference.Posterior:
-    """The worker-process job: ``sample_posterior`` on a validated request (see the module doc);
-    with ``training_worlds``, ``sample_joint_posterior`` on :func:`job_observations`."""
-    kwargs: dict[str, Any] = job.sampler.kwargs()
-    if job.extra_worlds:
-        observations = job_observations(
-            job, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
-        return core_inference.sample_joint_posterior(observations, job.beta, job.method, job.num_samples, job.seed,
-                                                     job.prior_sigma, **kwargs)
-    train = job.train_mdp
-    if job.proxy_mdp is not None:
-        phi, sample_phi = proxy_map_terms(
-            train.features, job.proxy_mdp.features, train.start, train.horizon, job.proxy_weights, job.method,
-            job.prior_sigma, job.seed, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
-        kwargs["proxy_features"] = phi
-        if sample_phi is not None:
-            kwargs["proxy_sample_features"] = sample_phi
-    return core_inference.sample_posterior(job.proxy_weights, train, job.beta, job.method, job.num_samples,
-                                           job.seed, job.prior_sigma, **kwargs)
-
-
-@dataclass(frozen=True)
-class ResampleJob:
-    """Re-sampling with the answers: ``base``'s proxy observation plus ``choices``, warm-started at
-    ``initial`` (the current posterior), with ``seed``."""
-
-    base: InferenceJob
-    choices: tuple[core_inference.ChoiceObservation, ...]
-    initial: core_inference.Posterior
-    seed: int
-
-
-def run_resample(job: ResampleJob) -> core_inference.Posterior:
-    """The worker-process job of /ird/answer: ``sample_joint_posterior`` on all the evidence."""
-    base = job.base
-    kwargs: dict[str, Any] = base.sampler.kwargs()
-    kwargs.pop("warmup", None)  # a warm start has its own short warm-up (the library's default)
-    proxies = job_observations(base, kwargs.get("num_proxy_samples", core_inference.DEFAULT_NUM_PROXY_SAMPLES))
-    return core_inference.sample_joint_posterior(
-        [*proxies, *job.choices], base.beta, base.method, base.num_samples, job.seed, base.prior_sigma,
-        initial=job.initial, **kwargs)
-
-
-def _stamp_key(stamp: Any) -> tuple[int, int]:
-    return int(stamp.sec), int(stamp.nanosec)
+def _publish_result(node: "InferenceNode", posterior: Posterior, layers: tuple[str, ...],
+                    proxy_weights: np.ndarray) -> RewardPosterior:
+    """The posterior as a message stamped now, with the sampler's own ``converged`` verdict
+    (``ValueError`` if it does not fit a message)."""
+    msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=proxy_weights,
+                                stamp=conv.now_stamp(node))
+    msg.converged = posterior.converged
+    return msg
 
 
 class InferenceNode(Node):
@@ -315,7 +156,7 @@ class InferenceNode(Node):
         self.default_prior_sigma = p["default_prior_sigma"]
         self.max_num_samples, self.max_horizon = p["max_num_samples"], p["max_horizon"]
         self.max_map_values = p["max_map_values"]
-        self.sampler = SamplerSettings.from_parameters(p)
+        self.sampler = sampler_settings(p)
         if p["worker_threads"] > 0:
             # Read by numpy's BLAS when the spawned worker imports it (the node's numpy is loaded).
             for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -324,12 +165,12 @@ class InferenceNode(Node):
                                 warm_modules=("ird_core.posterior", "ird_core.mdp"), logger=self.get_logger())
         self._pub = self.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
         self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
-        self.evidence = Evidence()
+        self.evidence = WorldEvidence()
         self.maps: dict[str, conv.FeatureGridData] = {}
         self._map_arrivals = Arrivals(self)
         self.proxy: ProxyReward | None = None
         self._queries_pub = self.create_publisher(QueryRecord, names.TOPIC_QUERIES, names.history_qos())
-        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
+        for topic in TEST_MAP_TOPICS:
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg),
                                      names.latched_qos())
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, names.latched_qos())
@@ -371,7 +212,7 @@ class InferenceNode(Node):
             proxy_mdp=None if proxy is None else train_mdp.with_features(proxy.features.astype(np.float64)),
             proxy_weights=weights,
             beta=float(req.beta),
-            method=req.method,
+            method=ZMethod(req.method),
             num_samples=int(req.num_samples),
             seed=int(req.seed),
             prior_sigma=prior_sigma,
@@ -434,9 +275,7 @@ class InferenceNode(Node):
             return response
         try:
             posterior = await self._offload.run(self.executor, run_inference, job)
-            msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=job.proxy_weights,
-                                        stamp=self.get_clock().now().to_msg())
-            msg.converged = posterior.converged
+            msg = _publish_result(self, posterior, layers, job.proxy_weights)
         except OffloadError as exc:
             response.success, response.message = False, str(exc)
             return response
@@ -445,7 +284,7 @@ class InferenceNode(Node):
             self.get_logger().error(response.message)
             return response
         self._pub.publish(msg)
-        self.evidence.reset(job, posterior, layers, _stamp_key(req.training_map.header.stamp))
+        self.evidence.reset(job, posterior, layers, stamp_key(req.training_map.header.stamp))
         response.success = True
         response.posterior = msg
         response.message = (f"{posterior.method}: {posterior.num_samples} samples, acceptance "
@@ -464,7 +303,7 @@ class InferenceNode(Node):
 
     def _on_proxy(self, msg: ProxyReward) -> None:
         self.proxy = msg
-        if self.evidence.on_proxy(_stamp_key(msg.header.stamp)):
+        if self.evidence.on_proxy(stamp_key(msg.header.stamp)):
             self.get_logger().info("a new world: the evidence (proxy, answers, open queries) was forgotten")
 
     def _query_map(self, req: ProposeQuery.Request) -> conv.FeatureGridData:
@@ -474,10 +313,9 @@ class InferenceNode(Node):
             if grid.layers != names_:
                 raise ValueError(f"map.layers: {list(grid.layers)} must be the posterior's features {list(names_)}")
             return grid
-        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
-            grid = self.maps.get(topic)
-            if grid is not None and grid.layers == names_:
-                return grid
+        found = conv.first_with_layers(self.maps, TEST_MAP_TOPICS, names_)
+        if found is not None:
+            return found[1]
         raise _MapMissing(f"map: empty, and no test map with the posterior's features {list(names_)} was received")
 
     def validate_query(self, req: ProposeQuery.Request) -> tuple[QueryJob, conv.FeatureGridData]:
@@ -499,9 +337,7 @@ class InferenceNode(Node):
         num_options = int(req.num_options) or 2
         if not 2 <= num_options <= self.max_options:
             raise ValueError(f"num_options: must be in [2, max_options={self.max_options}], got {num_options}")
-        strategy = req.strategy or "info_gain"
-        if strategy not in core_queries.STRATEGIES:
-            raise ValueError(f"strategy: must be one of {list(core_queries.STRATEGIES)}, got {strategy!r}")
+        strategy = parse(QueryStrategy, req.strategy or QueryStrategy.INFO_GAIN, "strategy")
         mdp = GridMDP(grid.features.astype(np.float64), start, horizon)
         return QueryJob(mdp, self.evidence.posterior.samples, self.answer_beta, num_options, strategy,
                         int(req.seed)), grid
@@ -510,7 +346,8 @@ class InferenceNode(Node):
         ev = self.evidence
         try:
             if ev.resampling:
-                raise ValueError("busy: re-sampling the posterior with an answer; ask again when it is published")
+                raise ValueError(f"{BUSY_PREFIX}: re-sampling the posterior with an answer; ask again when it is "
+                                 "published")
             deadline = time.monotonic() + MAP_WAIT
             while True:
                 try:
@@ -532,14 +369,13 @@ class InferenceNode(Node):
             response.success, response.message = False, "the evidence was replaced (new world or /ird/infer) meanwhile"
             return response
         h, w, _ = grid.shape
-        stamp = self.get_clock().now().to_msg()
+        stamp = conv.now_stamp(self)
         paths = conv.options_to_paths(query.option_cells, resolution=grid.resolution, origin=grid.origin,
                                       height=h, width=w, stamp=stamp)
-        record = dict(strategy=query.strategy, options=paths, feature_names=ev.feature_names,
-                      option_features=query.option_features, information_gain=float(query.information_gain))
+        record = ProposalRecord(QueryStrategy(query.strategy), tuple(paths), ev.feature_names, query.option_features,
+                                float(query.information_gain))
         qid = ev.add_query(query, record)
-        self._queries_pub.publish(conv.query_record_to_msg(query_id=qid, event="proposed", num_answers=len(ev.answers),
-                                                           stamp=stamp, **record))
+        self._queries_pub.publish(_record_msg(qid, record, QueryEvent.PROPOSED, len(ev.answers), stamp))
         response.success, response.query_id = True, qid
         response.options, response.feature_names = paths, list(ev.feature_names)
         response.option_features = conv.weights_to_flat(query.option_features, field="option_features")
@@ -554,20 +390,19 @@ class InferenceNode(Node):
         try:
             open_query, beta = ev.check_answer(int(req.query_id), int(req.chosen), float(req.beta), self.answer_beta)
             if ev.resampling:
-                raise ValueError("busy: re-sampling the posterior with another answer; answer again when it is "
-                                 "published")
+                raise ValueError(f"{BUSY_PREFIX}: re-sampling the posterior with another answer; answer again "
+                                 "when it is published")
         except ValueError as exc:
             response.success, response.message = False, str(exc)
             return response
         choice = ev.choice(open_query, int(req.chosen), beta)
         base, layers = ev.job, ev.feature_names
+        assert base is not None and ev.posterior is not None  # an open query belongs to current evidence
         job = ResampleJob(base, (*ev.answers, choice), ev.posterior, resample_seed(base.seed, len(ev.answers) + 1))
         epoch, ev.resampling = ev.epoch, True
         try:
             posterior = await self._offload.run(self.executor, run_resample, job)
-            msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=base.proxy_weights,
-                                        stamp=self.get_clock().now().to_msg())
-            msg.converged = posterior.converged
+            msg = _publish_result(self, posterior, layers, base.proxy_weights)
         except (OffloadError, ValueError) as exc:
             response.success, response.message = False, f"the answer was not taken: {exc}"
             return response
@@ -581,9 +416,9 @@ class InferenceNode(Node):
         ev.commit(open_query, choice, posterior)
         self._pub.publish(msg)
         who = req.answered_by or "client"
-        self._queries_pub.publish(conv.query_record_to_msg(
-            query_id=open_query.query_id, event="answered", chosen=int(req.chosen), beta=beta, answered_by=who,
-            num_answers=len(ev.answers), stamp=msg.header.stamp, **open_query.record))
+        self._queries_pub.publish(_record_msg(open_query.query_id, open_query.record, QueryEvent.ANSWERED,
+                                              len(ev.answers), msg.header.stamp, chosen=int(req.chosen), beta=beta,
+                                              answered_by=who))
         response.success, response.posterior = True, msg
         response.message = (f"query {open_query.query_id}: option {req.chosen} by {who}; {len(ev.answers)} answers, "
                             f"acceptance {posterior.acceptance_rate:.2f}, {posterior.diagnosis()}")

@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 from rclpy.node import Node
 
+from ird_core.vocabulary import Condition
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.observations import fit_classifier
 from ird_core.worlds.terrain import SAFE_TERRAINS, TERRAIN_NAMES
@@ -61,6 +62,7 @@ from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.stamps import stamp_key
 
 __all__ = ["PerceptionNode", "PARAMETERS", "classify_indicators", "classify_sensors", "main"]
 
@@ -121,16 +123,12 @@ class PerceptionNode(Node):
         self._proxy_msg = msg
         self._try_process()
 
-    @staticmethod
-    def _key(stamp: Any) -> tuple[int, int]:
-        return int(stamp.sec), int(stamp.nanosec)
-
     def _try_process(self) -> None:
         test, proxy = self._test_msg, self._proxy_msg
         if test is None or proxy is None:
             return
-        stamp = self._key(test.header.stamp)
-        if stamp != self._key(proxy.header.stamp) or stamp == self._done_stamp:
+        stamp = stamp_key(test.header.stamp)
+        if stamp != stamp_key(proxy.header.stamp) or stamp == self._done_stamp:
             return  # not one generation (yet), or already done
         try:
             self._process(test, proxy)
@@ -142,7 +140,7 @@ class PerceptionNode(Node):
         h, w, dim = grid.shape
         key = (int(proxy.seed), h, w, int(proxy.horizon), dim)
         if key not in self._classifiers:
-            inst = lavaland.make_instance("latent_classifier", int(proxy.seed), size=(h, w),
+            inst = lavaland.make_instance(Condition.LATENT_CLASSIFIER, int(proxy.seed), size=(h, w),
                                           horizon=int(proxy.horizon), obs_dim=dim)
             if inst.feature_names != grid.layers:
                 raise ValueError(f"/world/test_features.layers: expected {dim} observation layers "
@@ -184,17 +182,17 @@ class PerceptionNode(Node):
         grid = conv.feature_grid_from_msg(test, field="/world/test_features")
         condition = proxy.condition
         feature_out: tuple[np.ndarray, tuple[str, ...]] = (grid.features, grid.layers)
-        if condition in ("side_effects", "pot_of_gold"):  # indicator layers are the classes
+        if condition in (Condition.SIDE_EFFECTS, Condition.POT_OF_GOLD):  # indicator layers are the classes
             classes, probs, novelty = classify_indicators(grid.features)
             class_names = grid.layers
-        elif condition == "reward_hacking":
+        elif condition == Condition.REWARD_HACKING:
             classes, probs, novelty = classify_sensors(grid.features, 2)
             class_names = _SAFE_NAMES
-        elif condition in ("latent_raw", "latent_classifier"):
+        elif condition in (Condition.LATENT_RAW, Condition.LATENT_CLASSIFIER):
             clf = self._classifier(proxy, grid)
             classes, probs, novelty = self._classify(clf, grid)
             class_names = _SAFE_NAMES
-            if condition == "latent_classifier":
+            if condition == Condition.LATENT_CLASSIFIER:
                 # The proxy's feature space: exactly lavaland's proxy_test_features.
                 feature_out = (clf.predict_proba(grid.features.astype(np.float64)), tuple(proxy.feature_names))
         elif condition == lavaland.FILE_CONDITION:

@@ -15,22 +15,19 @@ Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
   ``/terrain/features`` (the proxy's space: the classifier proxy's literal plan). With explicit
   ``weights`` and no map, the first of those two maps whose layer count fits the weights (K*d
   values, d = its layer count; K = 1 for literal) is used.
-- ``reference_features`` empty (needed by baseline ``training_features`` only): the proxy's
-  expected feature counts in the training MDP divided by (training horizon + 1), in the space
-  of the weights: the proxy is planned (MaxEnt) on the training map in the proxy's own features
-  (``/world/train_proxy_features``, start and horizon from ``/world/proxy``), and its expected
-  visits are contracted with the training map whose layers match the weights
+- ``reference_features`` empty (needed by baseline ``training_features`` only): computed in the
+  worker (:mod:`ird_ros.jobs.planning`): the proxy is planned (MaxEnt) on the training map in the
+  proxy's own features (``/world/train_proxy_features``, start and horizon from ``/world/proxy``),
+  and its expected visits are contracted with the training map whose layers match the weights
   (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
-  proxy's own weights): ``ird_core.posterior.proxy_feature_counts / (T + 1)``, as
-  ``ird_core.worlds.lavaland.proxy_feature_expectations / (T + 1)``.
+  proxy's own weights).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
 the field's name): the map is decoded by ``ird_ros.conversions``, the arguments are checked by
 ``ird_core.planning.check_plan_arguments``, ``check_start`` and ``GridMDP``; the node itself
-checks only its limits (``max_horizon``, ``max_map_values``; ``max_plan_work`` through ``planning.check_plan_size``,
-before any work starts) and which received inputs fit together. The plan is
-``ird_core.planning.plan_path(GridMDP(map, start, horizon), weights, mode, baseline,
-reference_features, time_limit=time_limit)``, computed in a worker process: trajectory plans
+checks only its limits (``max_horizon``, ``max_map_values``; ``max_plan_work`` through
+``planning.check_plan_size``, before any work starts) and which received inputs fit together. The
+plan (docs/spec.md section 4) is :func:`ird_ros.jobs.planning.run_plan`, computed in a worker process: trajectory plans
 in one of their own, so a long one never delays a ``literal`` or ``per_step`` plan. A
 trajectory plan that reaches ``time_limit`` is answered with the best path found, marked in the
 message as ``FALLBACK, not proven optimal`` with its objective and proven upper bound. It is
@@ -60,18 +57,23 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from ird_core import planning
-from ird_core import posterior as core_inference
 from ird_core.checks import MAX_ABS_FEATURE
 from ird_core.mdp import GridMDP
+from ird_core.vocabulary import Baseline, PlanMode
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
 from ird_ros.graph import names
+from ird_ros.jobs.planning import PlanJob, ReferenceJob, run_plan
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import Offload, OffloadError, service_qos
+from ird_ros.stamps import stamp_text
 
-__all__ = ["PlannerNode", "PlanJob", "PlanOutcome", "ReferenceJob", "PARAMETERS", "reference_features", "run_plan", "main"]
+__all__ = ["PlannerNode", "PARAMETERS", "main"]
+
+TEST_MAP_TOPICS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+"""The perceived test maps, in the order defaults are looked up: the hypothesis space first."""
 
 PARAMETERS: dict[str, Param] = {
     "replan_on_posterior": Param(False, "Plan (default_mode, default_baseline, proxy's test start/horizon) on "
@@ -94,36 +96,6 @@ PARAMETERS: dict[str, Param] = {
 
 
 @dataclass(frozen=True)
-class ReferenceJob:
-    """The inputs of the default ``reference_features`` (see the module doc).
-
-    Attributes:
-        proxy_mdp: the training map in the proxy's features ``(H, W, p)``, the proxy's training
-            start and horizon.
-        proxy_weights: ``(p,)``.
-        target_features: the training map in the features of the plan's weights, ``(H, W, d)``.
-    """
-
-    proxy_mdp: GridMDP
-    proxy_weights: np.ndarray
-    target_features: np.ndarray
-
-
-@dataclass(frozen=True)
-class PlanJob:
-    """A validated request, as the worker process gets it: ``plan_path``'s arguments, with
-    ``reference_job`` standing in for ``reference_features`` when those are to be computed."""
-
-    mdp: GridMDP
-    weights: np.ndarray
-    mode: str
-    baseline: str
-    reference_features: np.ndarray | None
-    reference_job: ReferenceJob | None
-    time_limit: float | None
-
-
-@dataclass(frozen=True)
 class _Accepted:
     """A validated request: the job and what the answer needs besides the plan."""
 
@@ -133,43 +105,16 @@ class _Accepted:
     sources: tuple[str, ...]  # where defaulted inputs came from (reported in the message)
 
 
-def reference_features(job: ReferenceJob) -> np.ndarray:
-    """``f_ref`` (d,): the proxy's expected training counts of ``target_features`` / (T + 1)."""
-    counts = core_inference.proxy_feature_counts(job.proxy_mdp, job.proxy_weights, job.target_features)
-    return counts / (job.proxy_mdp.horizon + 1)
-
-
-@dataclass(frozen=True)
-class PlanOutcome:
-    """What the worker returns: the plan, and why it is a fallback (``""`` if it is optimal)."""
-
-    plan: planning.Plan
-    fallback: str = ""
-
-
-def run_plan(job: PlanJob) -> PlanOutcome:
-    """The worker-process job: the default reference features if asked for, then plan_path.
-
-    A trajectory plan that runs out of ``time_limit`` answers with the best path found, its
-    exact objective and the proven upper bound (``PlanningTimeout.plan``), marked as a fallback.
-    """
-    reference = job.reference_features
-    if reference is None and job.reference_job is not None:
-        reference = reference_features(job.reference_job)
-    try:
-        return PlanOutcome(planning.plan_path(job.mdp, job.weights, job.mode, job.baseline, reference,
-                                              time_limit=job.time_limit))
-    except planning.PlanningTimeout as exc:
-        return PlanOutcome(exc.plan, f"FALLBACK, not proven optimal: {exc}")
-
-
-def _stamp(stamp: Any) -> str:
-    """A header stamp as ``sec.nanosec`` (nanoseconds zero-padded), as in the response message."""
-    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
-
-
 def _flat(values: Any) -> np.ndarray:
     return np.array(values, dtype=np.float64).reshape(-1)
+
+
+def _reshape_weights(flat: np.ndarray, grid: conv.FeatureGridData) -> np.ndarray:
+    """Explicit weights as ``(K, d)``, d = the map's layer count (``ValueError`` naming ``weights``)."""
+    d = grid.shape[2]
+    if flat.size % d:
+        raise ValueError(f"weights: {flat.size} values are not a multiple of d={d} (map.layers)")
+    return flat.reshape(-1, d)
 
 
 class PlannerNode(Node):
@@ -197,8 +142,7 @@ class PlannerNode(Node):
         self.proxy: ProxyReward | None = None
         self.posterior: conv.PosteriorData | None = None
         self._risk_key: Any = None
-        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES,
-                      names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
+        for topic in (*TEST_MAP_TOPICS, names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
@@ -221,7 +165,7 @@ class PlannerNode(Node):
             self.get_logger().error(f"ignoring a bad map: {exc}")
             return
         self._versions[topic] = self._versions.get(topic, 0) + 1
-        self._stamps[topic] = _stamp(msg.header.stamp)
+        self._stamps[topic] = stamp_text(msg.header.stamp)
         self._update_risk_map()
 
     def _on_proxy(self, msg: ProxyReward) -> None:
@@ -234,18 +178,14 @@ class PlannerNode(Node):
             self.get_logger().error(f"ignoring a bad posterior: {exc}")
             return
         self._versions[names.TOPIC_POSTERIOR] = self._versions.get(names.TOPIC_POSTERIOR, 0) + 1
-        self._stamps[names.TOPIC_POSTERIOR] = _stamp(msg.header.stamp)
+        self._stamps[names.TOPIC_POSTERIOR] = stamp_text(msg.header.stamp)
         self._update_risk_map()
         if self.replan_on_posterior:
             self.executor.create_task(self._replan())
 
     def matching_map(self, layers: tuple[str, ...]) -> tuple[str, conv.FeatureGridData] | None:
         """The latest perceived test map whose layers are ``layers`` (test features first)."""
-        for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
-            grid = self.maps.get(topic)
-            if grid is not None and grid.layers == tuple(layers):
-                return topic, grid
-        return None
+        return conv.first_with_layers(self.maps, TEST_MAP_TOPICS, layers)
 
     def _update_risk_map(self) -> None:
         if self.posterior is None:
@@ -268,7 +208,7 @@ class PlannerNode(Node):
             self.get_logger().error(f"risk map: {exc}")
             return
         self._risk_pub.publish(conv.occupancy_grid_to_msg(
-            costs, resolution=grid.resolution, origin=grid.origin, stamp=self.get_clock().now().to_msg()))
+            costs, resolution=grid.resolution, origin=grid.origin, stamp=conv.now_stamp(self)))
 
     # ------------------------------------------------------------------ validation
 
@@ -280,58 +220,11 @@ class PlannerNode(Node):
         """
         # Mode and baseline first: which inputs are defaulted depends on them.
         planning.check_plan_arguments(req.mode, req.baseline)
+        mode, baseline = PlanMode(req.mode), Baseline(req.baseline)
         if req.horizon > self.max_horizon:
             raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
-        literal = req.mode == "literal"
-        grid: conv.FeatureGridData | None = None
-        if len(req.map.layers) or len(req.map.data):
-            if len(req.map.data) > self.max_map_values:
-                raise ValueError(f"map.data: {len(req.map.data)} values exceed max_map_values={self.max_map_values}")
-            grid = conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
-        flat = _flat(req.weights)
         sources: list[str] = []
-        if flat.size == 0:
-            if literal:
-                if self.proxy is None:
-                    raise ValueError("weights: empty and no proxy received on /world/proxy yet")
-                weights = _flat(self.proxy.weights)[None, :]
-                feature_names = tuple(self.proxy.feature_names)
-                sources.append(f"weights={names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}")
-            else:
-                if self.posterior is None:
-                    raise ValueError("weights: empty and no posterior received on /ird/posterior yet")
-                weights = self.posterior.samples
-                feature_names = self.posterior.feature_names
-                sources.append(f"weights={names.TOPIC_POSTERIOR}@{self._stamps[names.TOPIC_POSTERIOR]}")
-            if grid is None:
-                found = self.matching_map(feature_names)
-                if found is None:
-                    raise ValueError(f"map: empty and no perceived test map has the layers "
-                                     f"{list(feature_names)[:4]}{'...' if len(feature_names) > 4 else ''} "
-                                     "of the weights")
-                grid = found[1]
-                sources.append(f"map={found[0]}@{self._stamps[found[0]]}")
-            elif grid.layers != feature_names:
-                raise ValueError(f"map.layers: {list(grid.layers)[:4]}... do not match the weights' features "
-                                 f"{list(feature_names)[:4]}...")
-        else:
-            if grid is None:
-                for topic in (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES):
-                    candidate = self.maps.get(topic)
-                    if candidate is None:
-                        continue
-                    d = candidate.shape[2]
-                    if (literal and flat.size == d) or (not literal and flat.size % d == 0):
-                        grid = candidate
-                        sources.append(f"map={topic}@{self._stamps[topic]}")
-                        break
-                if grid is None:
-                    raise ValueError(f"map: empty and no perceived test map fits {flat.size} weight values")
-            d = grid.shape[2]
-            if flat.size % d:
-                raise ValueError(f"weights: {flat.size} values are not a multiple of d={d} (map.layers)")
-            weights = flat.reshape(-1, d)
-            feature_names = grid.layers
+        weights, feature_names, grid = self._weights_and_map(req, mode is PlanMode.LITERAL, sources)
         h, w, d = grid.shape
         planning.check_plan_size(len(weights), int(req.horizon), h, w, self.max_plan_work)
         start = planning.check_start((req.start_row, req.start_col), h, w)
@@ -339,44 +232,98 @@ class PlannerNode(Node):
         ref_flat = _flat(req.reference_features)
         reference = ref_flat if ref_flat.size else None
         time_limit = float(self.time_limit)
-        weights = planning.check_plan_arguments(req.mode, req.baseline, weights, d, reference, time_limit=time_limit)
+        weights = planning.check_plan_arguments(mode, baseline, weights, d, reference, time_limit=time_limit)
         reference_job = None
-        if reference is None and req.baseline == "training_features":
+        if reference is None and baseline is Baseline.TRAINING_FEATURES:
             reference_job, used = self._reference_job(feature_names)
             sources.append("reference_features=" + "+".join(used))
-        job = PlanJob(mdp=mdp, weights=weights, mode=req.mode, baseline=req.baseline, reference_features=reference,
+        job = PlanJob(mdp=mdp, weights=weights, mode=mode, baseline=baseline, reference_features=reference,
                       reference_job=reference_job, time_limit=time_limit)
-        label = req.label or (req.mode if literal else f"ird_{req.mode}_{req.baseline}")
+        label = req.label or (mode.value if mode is PlanMode.LITERAL else f"ird_{mode.value}_{baseline.value}")
         return _Accepted(job=job, grid=grid, label=label, sources=tuple(sources))
+
+    def _weights_and_map(self, req: PlanPath.Request, literal: bool, sources: list[str]
+                         ) -> tuple[np.ndarray, tuple[str, ...], conv.FeatureGridData]:
+        """The plan's weights ``(K, d)``, their feature names and the map, each from the request
+        or defaulted (see the module doc); ``sources`` gets the ``name=topic@stamp`` of defaults."""
+        grid = self._request_map(req)
+        flat = _flat(req.weights)
+        if flat.size:
+            grid = grid if grid is not None else self._map_fitting(flat.size, literal, sources)
+            return _reshape_weights(flat, grid), grid.layers, grid
+        weights, feature_names = self._latched_weights(literal, sources)
+        if grid is None:
+            return weights, feature_names, self._map_with_layers(feature_names, sources)
+        if grid.layers != feature_names:
+            raise ValueError(f"map.layers: {list(grid.layers)[:4]}... do not match the weights' features "
+                             f"{list(feature_names)[:4]}...")
+        return weights, feature_names, grid
+
+    def _request_map(self, req: PlanPath.Request) -> conv.FeatureGridData | None:
+        """The request's own map, or ``None`` when it left ``map`` empty."""
+        if not (len(req.map.layers) or len(req.map.data)):
+            return None
+        if len(req.map.data) > self.max_map_values:
+            raise ValueError(f"map.data: {len(req.map.data)} values exceed max_map_values={self.max_map_values}")
+        return conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
+
+    def _latched_weights(self, literal: bool, sources: list[str]) -> tuple[np.ndarray, tuple[str, ...]]:
+        """Empty ``weights``: the latest proxy's (literal) or the latest posterior's samples."""
+        if literal:
+            if self.proxy is None:
+                raise ValueError("weights: empty and no proxy received on /world/proxy yet")
+            sources.append(f"weights={names.TOPIC_PROXY}@{stamp_text(self.proxy.header.stamp)}")
+            return _flat(self.proxy.weights)[None, :], tuple(self.proxy.feature_names)
+        if self.posterior is None:
+            raise ValueError("weights: empty and no posterior received on /ird/posterior yet")
+        sources.append(f"weights={names.TOPIC_POSTERIOR}@{self._stamps[names.TOPIC_POSTERIOR]}")
+        return self.posterior.samples, self.posterior.feature_names
+
+    def _map_with_layers(self, feature_names: tuple[str, ...], sources: list[str]) -> conv.FeatureGridData:
+        """Empty ``map`` with defaulted weights: the latest perceived test map with their layers."""
+        found = self.matching_map(feature_names)
+        if found is None:
+            raise ValueError(f"map: empty and no perceived test map has the layers "
+                             f"{list(feature_names)[:4]}{'...' if len(feature_names) > 4 else ''} of the weights")
+        sources.append(f"map={found[0]}@{self._stamps[found[0]]}")
+        return found[1]
+
+    def _map_fitting(self, num_values: int, literal: bool, sources: list[str]) -> conv.FeatureGridData:
+        """Empty ``map`` with explicit weights: the first perceived test map whose layer count d
+        fits ``num_values`` (K*d values; K = 1 for literal)."""
+        for topic in TEST_MAP_TOPICS:
+            candidate = self.maps.get(topic)
+            if candidate is None:
+                continue
+            d = candidate.shape[2]
+            if (literal and num_values == d) or (not literal and num_values % d == 0):
+                sources.append(f"map={topic}@{self._stamps[topic]}")
+                return candidate
+        raise ValueError(f"map: empty and no perceived test map fits {num_values} weight values")
 
     def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
         """The default reference features' inputs from the latest proxy and training maps, and
         the ``topic@stamp`` of each input used."""
         if self.proxy is None:
             raise ValueError("reference_features: empty, and no proxy received on /world/proxy to compute them")
-        proxy_names = tuple(self.proxy.feature_names)
-        used = [f"{names.TOPIC_PROXY}@{_stamp(self.proxy.header.stamp)}"]
-        proxy_train = None
+        used = [f"{names.TOPIC_PROXY}@{stamp_text(self.proxy.header.stamp)}"]
         # The proxy is planned on its own features: the classified training map, or (no separate
         # proxy space) the training features themselves.
-        for topic in (names.TOPIC_TRAIN_PROXY_FEATURES, names.TOPIC_TRAIN_FEATURES):
-            grid = self.maps.get(topic)
-            if grid is not None and grid.layers == proxy_names:
-                proxy_train = grid
-                used.append(f"{topic}@{self._stamps[topic]}")
-                break
+        proxy_train = conv.first_with_layers(self.maps, (names.TOPIC_TRAIN_PROXY_FEATURES, names.TOPIC_TRAIN_FEATURES),
+                                             self.proxy.feature_names)
         if proxy_train is None:
             raise ValueError("reference_features: empty, and no training map with the proxy's layers "
                              "was received on /world/train_proxy_features or /world/train_features")
-        target = None
-        for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
-            grid = self.maps.get(topic)
-            if grid is not None and grid.layers == feature_names:
-                target = grid
-                used.append(f"{topic}@{self._stamps[topic]}")
-                break
+        target = conv.first_with_layers(self.maps, (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES),
+                                        feature_names)
         if target is None:
             raise ValueError("reference_features: empty, and no training map has the layers of the weights")
+        used += [f"{topic}@{self._stamps[topic]}" for topic, _ in (proxy_train, target)]
+        return self._reference_inputs(proxy_train[1], target[1]), used
+
+    def _reference_inputs(self, proxy_train: conv.FeatureGridData, target: conv.FeatureGridData) -> ReferenceJob:
+        """The reference job of the latest proxy on ``proxy_train`` counted in ``target``."""
+        assert self.proxy is not None
         if target.shape[:2] != proxy_train.shape[:2]:
             raise ValueError("reference_features: empty, and the training maps have different sizes")
         try:
@@ -386,34 +333,21 @@ class PlannerNode(Node):
             raise ValueError(f"reference_features: empty, and the proxy on {names.TOPIC_PROXY} does not fit "
                              f"its training map ({exc})") from None
         return ReferenceJob(proxy_mdp=proxy_mdp, proxy_weights=_flat(self.proxy.weights),
-                            target_features=target.features.astype(np.float64)), used
+                            target_features=target.features.astype(np.float64))
 
     # ------------------------------------------------------------------ planning
 
     async def _plan(self, req: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
         try:
             accepted = self.validate(req)
-            offload = self._offloads["trajectory" if accepted.job.mode == "trajectory" else "dp"]
+            offload = self._offloads["trajectory" if accepted.job.mode is PlanMode.TRAJECTORY else "dp"]
             outcome = await offload.run(self.executor, run_plan, accepted.job)
         except (ValueError, OffloadError) as exc:
             response.success, response.message = False, str(exc)
             return response
-        grid, label, sources, plan = accepted.grid, accepted.label, accepted.sources, outcome.plan
-        stamp = self.get_clock().now().to_msg()
-        path = conv.cells_to_path(plan.cells, resolution=grid.resolution, origin=grid.origin,
-                                  height=grid.shape[0], width=grid.shape[1], stamp=stamp)
-        rows = [int(r) for r, _ in plan.cells]
-        cols = [int(c) for _, c in plan.cells]
-        info = PlanInfo()
-        info.header = conv.make_header(stamp)
-        info.label = label
-        info.mode = plan.mode
-        info.baseline = plan.baseline
-        info.objective = float(plan.objective)
-        info.rows = rows
-        info.cols = cols
-        self._info_pub.publish(info)  # before the path: Rob can label the plan as soon as it starts
-        self._plan_pub.publish(path)
+        sources, plan = accepted.sources, outcome.plan
+        label = accepted.label
+        path, info = self._publish_plan(accepted, plan)
         response.success = True
         response.message = (f"{label}: {plan.mode}/{plan.baseline} objective {plan.objective:.6g} "
                             f"({plan.solver}, {len(plan.cells) - 1} moves)"
@@ -421,10 +355,21 @@ class PlannerNode(Node):
                             + (f"; inputs: {', '.join(sources)}" if sources else ""))
         response.path = path
         response.objective = float(plan.objective)
-        response.rows = rows
-        response.cols = cols
+        response.rows, response.cols = info.rows, info.cols
         self.get_logger().info(response.message)
         return response
+
+    def _publish_plan(self, accepted: _Accepted, plan: planning.Plan) -> tuple[Path, PlanInfo]:
+        """Publish the plan on ``/ird/plan_info`` and then ``/plan``, both stamped now."""
+        grid, stamp = accepted.grid, conv.now_stamp(self)
+        path = conv.cells_to_path(plan.cells, resolution=grid.resolution, origin=grid.origin,
+                                  height=grid.shape[0], width=grid.shape[1], stamp=stamp)
+        info = PlanInfo(header=conv.make_header(stamp), label=accepted.label, mode=str(plan.mode),
+                        baseline=str(plan.baseline), objective=float(plan.objective),
+                        rows=[int(r) for r, _ in plan.cells], cols=[int(c) for _, c in plan.cells])
+        self._info_pub.publish(info)  # before the path: Rob can label the plan as soon as it starts
+        self._plan_pub.publish(path)
+        return path, info
 
     async def _on_plan(self, req: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
         return await self._plan(req, response)

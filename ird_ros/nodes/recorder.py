@@ -72,13 +72,14 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import String
 
-from ird_ros.bags.analysis import register_type
+from ird_ros.bags.storage import register_type
 from ird_ros.bags.repair import checkpoint, close_writer
+from ird_ros.graph import names
 from ird_ros.runtime.node_params import Param, declare_all
 
 __all__ = ["RecorderError", "RecorderNode", "PARAMETERS", "find_installed_msg", "main"]
 
-NODE_NAME = "recorder"
+NODE_NAME = names.NODE_RECORDER
 PARAMETERS: dict[str, Param] = {
     "output_dir": Param("", "The bag folder to create (required; {stamp} = local date and time)"),
     "topics": Param((), "Topics to record (empty = every topic with a publisher, minus exclude_topics)"),
@@ -87,7 +88,7 @@ PARAMETERS: dict[str, Param] = {
     "queue_depth": Param(1000, "History depth of the recording subscriptions"),
     "flush_period": Param(0.5, "Seconds between checkpoints of the bag: at most this much is lost to a SIGKILL (0 = off)"),
 }
-STATUS_TOPIC = "/recorder/status"
+STATUS_TOPIC = names.TOPIC_RECORDER_STATUS
 """std_msgs/String, latched: JSON ``{"output_dir": ..., "counts": {topic: messages}}``."""
 
 

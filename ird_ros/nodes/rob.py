@@ -30,6 +30,7 @@ from ird_ros.graph import names
 from ird_ros.jobs.rob_logic import RobExecutor
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.stamps import stamp_key
 
 __all__ = ["RobNode", "PARAMETERS", "main"]
 
@@ -37,10 +38,6 @@ PARAMETERS: dict[str, Param] = {
     "rate_hz": Param(5.0, "Cells Rob moves per second", min_value=0.01, max_value=1000.0, read_only=True),
     "child_frame_id": Param("base_link", "Odometry child frame"),
 }
-
-
-def _key(stamp: Any) -> tuple[int, int]:
-    return int(stamp.sec), int(stamp.nanosec)
 
 
 class RobNode(Node):
@@ -83,11 +80,11 @@ class RobNode(Node):
             self.get_logger().error(f"ignoring bad true rewards: {exc}")
 
     def _on_info(self, msg: PlanInfo) -> None:
-        key = _key(msg.header.stamp)
+        key = stamp_key(msg.header.stamp)
         self._labels[key] = msg.label
         while len(self._labels) > 64:
             self._labels.popitem(last=False)
-        if self.rob.plan_stamp is not None and _key(self.rob.plan_stamp) == key:
+        if self.rob.plan_stamp is not None and stamp_key(self.rob.plan_stamp) == key:
             self.rob.set_label(msg.label)
 
     def _on_plan(self, msg: Path) -> None:
@@ -100,12 +97,12 @@ class RobNode(Node):
             cells = conv.path_to_cells(msg, resolution=resolution, origin=origin,
                                        height=shape[0] if shape else None, width=shape[1] if shape else None,
                                        field=names.TOPIC_PLAN)
-            self.rob.set_plan(cells, stamp=msg.header.stamp, label=self._labels.get(_key(msg.header.stamp), ""))
+            self.rob.set_plan(cells, stamp=msg.header.stamp, label=self._labels.get(stamp_key(msg.header.stamp), ""))
         except ValueError as exc:
             self.get_logger().error(f"ignoring plan: {exc}")
             return
         self.get_logger().info(f"executing a plan of {len(cells) - 1} moves "
-                               f"({self._labels.get(_key(msg.header.stamp), 'unlabelled')})")
+                               f"({self._labels.get(stamp_key(msg.header.stamp), 'unlabelled')})")
 
     # ------------------------------------------------------------------ execution
 
@@ -118,7 +115,7 @@ class RobNode(Node):
         if status is None or self._geometry is None:
             return
         resolution, origin = self._geometry
-        stamp = self.get_clock().now().to_msg()
+        stamp = conv.now_stamp(self)
         x, y = conv.cell_center(status.row, status.col, resolution, origin)
         odom = Odometry()
         odom.header = conv.make_header(stamp)

@@ -53,6 +53,7 @@ from typing import Any, Sequence
 import numpy as np
 from rclpy.node import Node
 
+from ird_core.vocabulary import Condition, parse
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.observations import DEFAULT_DIM
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid, TrainingWorld
@@ -109,7 +110,7 @@ def infer_request(inst: lavaland.LavalandInstance, **geometry: Any) -> InferRewa
 
 
 def with_world_file(specs: Sequence[Any], path: str | Path) -> list[Any]:
-    """Launch specs (``ird_ros.launch.launcher.LaunchSpec``) whose world and perception nodes load the
+    """Node specs (``ird_ros.graph.NodeSpec``) whose world and perception nodes load the
     world file ``path``: ``-p world_file:=<absolute path>`` after the params file."""
     arg = ("-p", f"world_file:={Path(path).resolve()}")
     return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + arg)
@@ -153,12 +154,11 @@ class WorldNode(Node):
 
     def generate(self, condition: str, seed: int) -> lavaland.LavalandInstance:
         """Make and publish a new instance (raises ``ValueError`` naming a bad argument)."""
-        if condition not in lavaland.ALL_CONDITIONS:
-            raise ValueError(f"condition: must be one of {list(lavaland.ALL_CONDITIONS)}, got {condition!r}")
+        kind = parse(Condition, condition, "condition")
         instance = lavaland.make_instance(
-            condition, int(seed), size=(self.height, self.width), horizon=self.horizon, obs_dim=self.obs_dim)
+            kind, int(seed), size=(self.height, self.width), horizon=self.horizon, obs_dim=self.obs_dim)
         self.instance = instance
-        self.condition, self.seed = condition, int(seed)
+        self.condition, self.seed = kind.value, int(seed)
         self._publish(instance, self.resolution, (0.0, 0.0))
         return instance
 
@@ -171,7 +171,7 @@ class WorldNode(Node):
         return self.instance
 
     def _publish(self, inst: lavaland.LavalandInstance, resolution: float, origin: tuple[float, ...]) -> None:
-        stamp = self.get_clock().now().to_msg()
+        stamp = conv.now_stamp(self)
         geometry = dict(resolution=resolution, origin=origin, stamp=stamp)
         num_terrains = len(inst.terrain_names)
         msgs: list[tuple[str, Any]] = [
@@ -192,7 +192,7 @@ class WorldNode(Node):
     def _proxy_msg(self, inst: lavaland.LavalandInstance, stamp: Any) -> ProxyReward:
         msg = ProxyReward()
         msg.header = conv.make_header(stamp)
-        msg.condition = inst.condition
+        msg.condition = str(inst.condition)
         msg.seed = int(inst.seed)
         msg.feature_names = list(inst.proxy_feature_names)
         msg.weights = conv.weights_to_flat(inst.proxy_weights, field="ProxyReward.weights")

@@ -36,7 +36,7 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
 
-from ird_ros.launch.supervisor import set_parent_death_signal
+from ird_ros.launch.process_groups import set_parent_death_signal
 
 __all__ = ["StartupError", "run_node", "declare", "WorkerPool", "BrokenProcessPool"]
 

@@ -4,7 +4,7 @@ The inference and planner nodes both validate a request, then hand a typed, pick
 :class:`Offload` and ``await`` it. Every way that can fail becomes :class:`OffloadError`, whose
 message is the service's ``message`` (with ``success: false``):
 
-- ``busy: ...`` when ``max_pending`` valid requests are already waiting or running (refused at
+- :data:`BUSY_PREFIX` ``...`` when ``max_pending`` valid requests are already waiting or running (refused at
   once, the job never queues; the message gives the queue position it would have had);
 - the library's own ``ValueError`` message as it is (it starts with the argument's name);
 - ``internal error: the worker process died (...)`` (the pool starts a new worker next time);
@@ -16,9 +16,9 @@ Jobs run one after another in arrival order per worker (``WorkerPool`` is FIFO).
 :func:`service_qos` is the QoS of every IRD service (requests and responses). rclpy's default
 (``qos_profile_services_default``) keeps the last 10 requests in the server's request reader
 and the last 10 responses in its response writer: a burst of more than 10 requests arriving
-before the executor takes them silently dropped the oldest (32 clients at once: 11 answered,
-21 never). The deeper queue keeps a burst until the node answers each request, with a result
-or at once with ``busy``.
+before the executor takes them silently drops the oldest, so those clients never get an answer.
+The deeper queue keeps a burst until the node answers each request, with a result or at once
+with ``busy``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,11 @@ from typing import Any, Callable, Sequence, TypeVar
 
 from ird_ros.runtime.node_main import BrokenProcessPool, WorkerPool
 
-__all__ = ["Offload", "OffloadError", "SERVICE_QUEUE_DEPTH", "service_qos"]
+__all__ = ["BUSY_PREFIX", "Offload", "OffloadError", "SERVICE_QUEUE_DEPTH", "service_qos"]
+
+#: How every "try again later" answer of an IRD service begins (``success: false``); clients
+#: recognise it in one place, ``ird_ros.client.results``.
+BUSY_PREFIX = "busy"
 
 #: Requests (and responses) a service keeps until the node takes (the client acknowledges)
 #: them; a burst up to this size is answered in full.
@@ -75,7 +79,7 @@ class Offload:
     async def run(self, executor: Any, fn: Callable[[J], R], job: J) -> R:
         """``fn(job)`` in a worker process; raises :class:`OffloadError` (see the module doc)."""
         if self.pending >= self.max_pending:
-            raise OffloadError(f"busy: {self.pending} requests are pending (max_pending={self.max_pending}); "
+            raise OffloadError(f"{BUSY_PREFIX}: {self.pending} requests are pending (max_pending={self.max_pending}); "
                                f"this one would be queue position {self.pending + 1}: retry later")
         self.pending += 1
         try:

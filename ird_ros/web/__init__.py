@@ -1,1 +1,1 @@
-"""The designer's web page: a ROS-free Tornado server (``server``) and its static files."""
+"""The designer's web page: a ROS-free Tornado server (``server``) and its static files (``static/``)."""

@@ -1,6 +1,6 @@
 """The designer's web page: a person answers the robot's queries in a browser (ROS-free).
 
-``WebDesigner`` serves one page (``ird_ros/web/``: HTML, JS, CSS, no external assets) from an
+``WebDesigner`` serves one page (``ird_ros/web/static/``: HTML, JS, CSS, no external assets) from an
 HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.nodes.designer``,
 ``mode: web``) owns every ROS interface and feeds this object plain dicts::
 
@@ -12,8 +12,9 @@ HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.no
     web.show_posterior(posterior, risk_map)
     web.stop()
 
-The dict layouts are those of ``/work/notes/designer_web_contract.md`` (mirrored in the
-``show_*`` docstrings). Every ``show_*`` is thread-safe and non-blocking: it updates the state
+The dict layouts are documented in the ``show_*`` docstrings (built by
+:func:`ird_ros.bags.rounds.record_dict` and ``ird_ros.nodes.designer``'s ``*_dict``; the
+conversation is docs/spec.md section 7). Every ``show_*`` is thread-safe and non-blocking: it updates the state
 under a lock and schedules a push of the new state to every open page over a WebSocket, so the
 page updates without a reload.
 
@@ -57,8 +58,8 @@ import tornado.websocket
 
 __all__ = ["WebDesigner", "OnAnswer", "WEB_DIR", "is_loopback"]
 
-#: Static assets of the page.
-WEB_DIR = Path(__file__).resolve().parent
+#: Static assets of the page: only these files are served (never the server's own code).
+WEB_DIR = Path(__file__).resolve().parent / "static"
 
 #: The node's answer callback: ``(query_id, chosen) -> (ok, message)``; blocks until answered.
 OnAnswer = Callable[[int, int], "tuple[bool, str]"]

@@ -80,7 +80,7 @@ def test_elliptical_posterior_matches_quadrature_in_2d(kernel: str) -> None:
 
 def _creased_model(condition: str, size: int, horizon: int, beta: float, seed: int):
     inst = lavaland.make_instance(condition, seed, size=size, horizon=horizon, obs_dim=4)
-    return make_joint_model(lavaland.proxy_observations(inst, 20, 3, 1.0), beta, "sample_z", 1.0)
+    return make_joint_model(I.proxy_observations(inst, 20, 3, 1.0), beta, "sample_z", 1.0)
 
 
 # Cases where damped Newton stalls on a crease (found by search; each checked below).
@@ -113,7 +113,7 @@ def test_laplace_start_finds_the_mode_past_a_stalled_newton(condition: str, size
 def test_smooth_posteriors_keep_the_newton_laplace_start(monkeypatch: pytest.MonkeyPatch) -> None:
     # MaxEnt-Z is smooth and log-concave: Newton converges and nothing else runs.
     inst = lavaland.make_instance("latent_raw", 1, size=15, horizon=30, obs_dim=4)
-    model = make_joint_model(lavaland.proxy_observations(inst, None, 3, 1.0), 50.0, "maxent_z", 1.0)
+    model = make_joint_model(I.proxy_observations(inst, None, 3, 1.0), 50.0, "maxent_z", 1.0)
     calls: list[str] = []
     monkeypatch.setattr(laplace, "_quasi_newton_mode", lambda *a: calls.append("lbfgs"))
     monkeypatch.setattr(laplace, "_profile_widths", lambda *a: calls.append("profile"))
@@ -164,7 +164,7 @@ def test_the_mode_start_lets_short_chains_converge_on_a_creased_posterior(monkey
     # L-BFGS mode with profiled widths, 4 short chains of either kernel pass R-hat; from the
     # stalled Newton point the elliptical chains do not (seeded, so the values are fixed).
     inst = lavaland.make_instance("latent_raw", 1, size=15, horizon=30, obs_dim=4)
-    observations = lavaland.proxy_observations(inst, 20, 3, 1.0)
+    observations = I.proxy_observations(inst, 20, 3, 1.0)
     settings = dict(num_chains=4, warmup=100, thin=4, max_leapfrog=32)
 
     def r_hat(kernel: str) -> float:

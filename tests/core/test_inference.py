@@ -157,7 +157,7 @@ def test_default_proxy_samples_match_lavaland() -> None:
     instance = lavaland.make_instance("side_effects", 0, size=5, horizon=4)
     mdp = lavaland.train_mdp(instance)
     model = I.make_posterior_model(instance.proxy_weights, mdp, 1.0, "sample_z", seed=3, num_proxy_samples=20)
-    np.testing.assert_allclose(model.sample_features, lavaland.proxy_prior_features(instance, 20, 3), atol=1e-10)
+    np.testing.assert_allclose(model.sample_features, I.proxy_prior_features(instance, 20, 3), atol=1e-10)
 
 
 # ------------------------------------------------------------------------------ arguments

@@ -10,7 +10,8 @@ import pytest
 from scipy.special import logsumexp
 
 from ird_core import mdp
-from ird_core.worlds import lavaland as L
+from ird_core import posterior
+from ird_core.worlds import evaluation, lavaland as L
 from ird_core.worlds.observations import (
     TerrainClassifier,
     fit_classifier,
@@ -80,7 +81,7 @@ def test_true_optimal_plan_reaches_a_target_in_training(instances: dict) -> None
             continue
         rewards = L.TRUE_TERRAIN_REWARD[inst.train_labels].astype(np.float64)
         cells, _ = mdp.optimal_path(L.train_mdp(inst), rewards)
-        assert L.reaches_target(inst.train_labels, cells)
+        assert evaluation.reaches_target(inst.train_labels, cells)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -246,13 +247,13 @@ def test_true_return_and_path_predicates() -> None:
                        [Terrain.LAVA, Terrain.DIRT, Terrain.DIRT],
                        [Terrain.DIRT, Terrain.DIRT, Terrain.DIRT]], dtype=np.int8)
     path = [(0, 0), (0, 1), (0, 2), (0, 2)]
-    assert L.true_return(labels, path) == pytest.approx(0.1 - 0.2 + 1.0 + 1.0)
-    assert L.reaches_target(labels, path) and not L.touches_lava(labels, path)
+    assert evaluation.true_return(labels, path) == pytest.approx(0.1 - 0.2 + 1.0 + 1.0)
+    assert evaluation.reaches_target(labels, path) and not evaluation.touches_lava(labels, path)
     lava_path = [(0, 0), (1, 0), (1, 0)]
-    assert L.true_return(labels, lava_path) == pytest.approx(0.1 - 20.0)
-    assert L.touches_lava(labels, lava_path) and not L.reaches_target(labels, lava_path)
+    assert evaluation.true_return(labels, lava_path) == pytest.approx(0.1 - 20.0)
+    assert evaluation.touches_lava(labels, lava_path) and not evaluation.reaches_target(labels, lava_path)
     with pytest.raises(ValueError, match="cells"):
-        L.true_return(labels, [(0, 0), (3, 0)])
+        evaluation.true_return(labels, [(0, 0), (3, 0)])
 
 
 @pytest.mark.parametrize(
@@ -306,7 +307,7 @@ def test_proxy_feature_expectations_match_enumeration(condition: str, seed: int)
     assert len(enumerate_paths(3, 3, inst.train_start, 3)) > 20
     expected = brute_expected_features(inst.proxy_train_features, inst.proxy_weights,
                                        inst.train_features, inst.train_start, inst.train_horizon)
-    got = L.proxy_feature_expectations(inst)
+    got = posterior.proxy_feature_expectations(inst)
     assert got.shape == (inst.num_features,)
     assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
 
@@ -315,20 +316,20 @@ def test_proxy_feature_expectations_match_enumeration(condition: str, seed: int)
 def test_proxy_prior_features_match_enumeration(condition: str) -> None:
     inst = L.make_instance(condition, 3, size=3, horizon=3, obs_dim=5)
     num, sigma = 4, 0.7
-    got = L.proxy_prior_features(inst, num, 9, prior_sigma=sigma)
+    got = posterior.proxy_prior_features(inst, num, 9, prior_sigma=sigma)
     assert got.shape == (num, inst.num_features)
     weights = sigma * np.random.default_rng(9).standard_normal((num, len(inst.proxy_feature_names)))
     for k in range(num):
         expected = brute_expected_features(inst.proxy_train_features, weights[k],
                                            inst.train_features, inst.train_start, inst.train_horizon)
         assert np.allclose(got[k], expected, rtol=1e-9, atol=1e-12)
-    assert np.array_equal(got, L.proxy_prior_features(inst, num, 9, prior_sigma=sigma))
-    assert not np.allclose(got, L.proxy_prior_features(inst, num, 10, prior_sigma=sigma))
+    assert np.array_equal(got, posterior.proxy_prior_features(inst, num, 9, prior_sigma=sigma))
+    assert not np.allclose(got, posterior.proxy_prior_features(inst, num, 10, prior_sigma=sigma))
 
 
 def test_proxy_prior_features_batches_consistently() -> None:
     inst = L.make_instance("side_effects", 0, size=4, horizon=4)
-    many = L.proxy_prior_features(inst, 300, 1)  # more than one internal batch
+    many = posterior.proxy_prior_features(inst, 300, 1)  # more than one internal batch
     weights = np.random.default_rng(1).standard_normal((300, 4))
     direct = mdp.feature_expectations(L.train_mdp(inst), weights)
     assert np.allclose(many, direct, rtol=1e-12)
@@ -339,6 +340,6 @@ def test_proxy_prior_features_batches_consistently() -> None:
 def test_proxy_prior_features_errors() -> None:
     inst = L.make_instance("side_effects", 0, size=3, horizon=2)
     with pytest.raises(ValueError, match="num"):
-        L.proxy_prior_features(inst, 0, 0)
+        posterior.proxy_prior_features(inst, 0, 0)
     with pytest.raises(ValueError, match="prior_sigma"):
-        L.proxy_prior_features(inst, 1, 0, prior_sigma=0.0)
+        posterior.proxy_prior_features(inst, 1, 0, prior_sigma=0.0)

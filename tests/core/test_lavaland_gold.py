@@ -13,8 +13,8 @@ import pytest
 from matplotlib.colors import to_rgb
 
 from ird_core import render
-from ird_core.worlds import lavaland as L
-from ird_core.worlds.terrain import TEST_MAP, Terrain, place_gold, sample_terrain, terrain_fractions
+from ird_core.worlds import evaluation, lavaland as L
+from ird_core.worlds.terrain import TERRAIN_COLORS, TEST_MAP, Terrain, place_gold, sample_terrain, terrain_fractions
 
 SEEDS = range(12)
 
@@ -85,13 +85,13 @@ def test_outcomes_on_a_hand_made_path() -> None:
                        [Terrain.DIRT, Terrain.GRASS, Terrain.GOLD]], dtype=np.int8)
     # Start (0, 0) dirt, gold, gold again (stay), target, lava: T + 1 = 5 cells, start included.
     path = [(0, 0), (0, 1), (0, 1), (1, 1), (1, 0)]
-    assert L.true_return(labels, path) == pytest.approx(0.1 + 3.0 + 3.0 + 1.0 - 10.0, abs=1e-12)
-    assert L.reaches_gold(labels, path) and L.touches_lava(labels, path) and L.reaches_target(labels, path)
+    assert evaluation.true_return(labels, path) == pytest.approx(0.1 + 3.0 + 3.0 + 1.0 - 10.0, abs=1e-12)
+    assert evaluation.reaches_gold(labels, path) and evaluation.touches_lava(labels, path) and evaluation.reaches_target(labels, path)
     safe = [(0, 0), (0, 0), (0, 0)]
-    assert not L.reaches_gold(labels, safe) and not L.touches_lava(labels, safe)
-    assert L.reaches_gold(labels, [(1, 2), (2, 2)])
+    assert not evaluation.reaches_gold(labels, safe) and not evaluation.touches_lava(labels, safe)
+    assert evaluation.reaches_gold(labels, [(1, 2), (2, 2)])
     with pytest.raises(ValueError, match="cells"):
-        L.reaches_gold(labels, [(3, 0)])
+        evaluation.reaches_gold(labels, [(3, 0)])
 
 
 def test_place_gold_counts_and_errors() -> None:
@@ -124,12 +124,12 @@ def test_make_instance_accepts_pot_of_gold_but_the_paper_conditions_stay_four() 
 
 def test_gold_has_its_own_colour_and_legend_entry(tmp_path: Path, gold_instances: dict) -> None:
     inst = gold_instances[0]
-    assert len(set(render.TERRAIN_COLORS)) == len(render.TERRAIN_COLORS) == len(Terrain)
+    assert len(set(TERRAIN_COLORS)) == len(TERRAIN_COLORS) == len(Terrain)
     path = tmp_path / "gold.png"
     render.save_mission_figure(path, inst.train_labels, inst.test_labels, {}, title="gold",
                                test_start=inst.test_start)
     image = mpimg.imread(path)[..., :3]
-    gold = np.all(np.abs(image - np.array(to_rgb(render.TERRAIN_COLORS[Terrain.GOLD]))) <= 2.5 / 255, axis=-1)
+    gold = np.all(np.abs(image - np.array(to_rgb(TERRAIN_COLORS[Terrain.GOLD]))) <= 2.5 / 255, axis=-1)
     assert gold.any()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -30,10 +30,10 @@ def _outputs(engine: str, monkeypatch: pytest.MonkeyPatch, grid: mdp.GridMDP, we
     """Every output of both passes and of the public functions, under one engine."""
     monkeypatch.setenv("IRD_ENGINE", engine)
     rewards = mdp.cell_rewards(grid, weights)
-    back = linear_passes._linear_backward(grid, rewards)
+    back = linear_passes.linear_backward(grid, rewards)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        visits, unsure = linear_passes._linear_visitation(grid, back)
-    short = linear_passes._linear_backward(grid, rewards, keep_sums=False)
+        visits, unsure = linear_passes.linear_visitation(grid, back)
+    short = linear_passes.linear_backward(grid, rewards, keep_sums=False)
     out = [back.exp_rewards.copy(), back.log_z, back.suspect, visits.copy(), unsure, short.log_z, short.suspect]
     out += [mdp.log_partition(grid, weights), *mdp.log_partition_and_feature_expectations(grid, weights)]
     return out
@@ -77,7 +77,7 @@ def test_the_equality_covers_rescaling_and_flagged_elements(monkeypatch: pytest.
 
 def test_the_experiments_sizes_agree_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
     inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
-    grid = lavaland.proxy_observations(inst, None, 0, 1.0)[0].train_mdp
+    grid = posterior.proxy_observations(inst, None, 0, 1.0)[0].train_mdp
     weights = np.random.default_rng(0).standard_normal((8, grid.num_features)) * 0.3
     _assert_same(_outputs("numpy", monkeypatch, grid, weights), _outputs("numba", monkeypatch, grid, weights))
 
@@ -85,7 +85,7 @@ def test_the_experiments_sizes_agree_bit_for_bit(monkeypatch: pytest.MonkeyPatch
 @pytest.mark.filterwarnings("ignore:sample_joint_posterior")  # a short run: only equality matters
 def test_a_seeded_posterior_draws_the_same_samples_with_either_engine(monkeypatch: pytest.MonkeyPatch) -> None:
     inst = lavaland.make_instance("latent_raw", 2, size=8, horizon=12, obs_dim=10)
-    observations = lavaland.proxy_observations(inst, 100, 7, 1.0)
+    observations = posterior.proxy_observations(inst, 100, 7, 1.0)
     draws = {}
     for engine in ("numpy", "numba"):
         monkeypatch.setenv("IRD_ENGINE", engine)

@@ -111,7 +111,7 @@ def test_linear_space_passes_match_log_space_on_large_grids(height: int, width: 
     rng = np.random.default_rng(height * 100 + horizon)
     mdp = random_mdp(rng, height, width, d=5, horizon=horizon)
     weights = rng.normal(size=(9, 5)) * np.array([0.0, 0.1, 0.3, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0])[:, None]
-    suspect = linear_passes._linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
+    suspect = linear_passes.linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
     assert not suspect.any(), "ordinary rewards must not need the exact fallback"
     log_z, visits = exact_reference(mdp, weights)
     assert rel_close(M.log_partition(mdp, weights), log_z, 1e-12)
@@ -124,7 +124,7 @@ def test_mixed_batch_falls_back_per_element_and_matches_one_at_a_time() -> None:
     rng = np.random.default_rng(7)
     mdp = random_mdp(rng, 7, 6, d=3, horizon=15)
     weights = rng.normal(size=(8, 3)) * np.array([1.0, 500.0, 1.0, 1.0, 2000.0, 0.0, 1.0, 300.0])[:, None]
-    suspect = linear_passes._linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
+    suspect = linear_passes.linear_backward(mdp, M.cell_rewards(mdp, weights)).suspect
     assert suspect[[1, 4]].all() and not suspect[[0, 2, 3, 5, 6]].any()
     log_z, visits = exact_reference(mdp, weights)
     batched_z, batched_phi = M.log_partition_and_feature_expectations(mdp, weights)

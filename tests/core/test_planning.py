@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from ird_core import planning as P
 from ird_core.mdp import GridMDP, successor_table, validate_path
 from ird_core.mdp.enumeration import all_trajectories, brute_log_partition, trajectory_features
+from ird_core.planning import trajectory_milp
 from ird_core.planning import trajectory_solver as TS
 
 SHAPES = [(1, 1), (1, 2), (2, 1), (1, 3), (3, 1), (2, 2), (2, 3), (3, 2), (3, 3), (2, 4)]
@@ -160,11 +161,11 @@ def test_milp_on_the_reachable_graph_matches_brute_force(seed: int) -> None:
     b = reference_baselines(mdp, weights, "initial_state", reference)
     q = (mdp.features.reshape(mdp.num_states, -1) @ weights.T - b).T  # (K, S)
     reachable = TS._start_distance(mdp)[None, :] <= np.arange(mdp.horizon + 1)[:, None]
-    model = TS._build_trajectory_milp(mdp, q, reachable)
+    model = trajectory_milp.build_trajectory_milp(mdp, q, reachable)
     assert model.num_edges == sum(  # every reachable (t, s) keeps all its in-grid moves
         int((successor_table(mdp.height, mdp.width)[s] >= 0).sum())
         for t in range(mdp.horizon) for s in np.flatnonzero(reachable[t]))
-    cells, bound = TS._solve_trajectory_milp(mdp, model, np.inf)
+    cells, bound = trajectory_milp.solve_trajectory_milp(mdp, model, np.inf)
     _, values = brute_values(mdp, weights, "trajectory", b)
     assert close(value_of(mdp, weights, "trajectory", b, cells), float(values.max()))
     assert bound >= float(values.max()) - 1e-6

@@ -12,7 +12,7 @@ from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
 from ird_core import render
-from ird_core.worlds.terrain import TEST_MAP, TRAIN_MAP, Terrain, sample_terrain
+from ird_core.worlds.terrain import TERRAIN_COLORS, TEST_MAP, TRAIN_MAP, Terrain, sample_terrain
 
 
 def colour_present(image: np.ndarray, colour: str, tolerance: float = 2.5 / 255) -> bool:
@@ -43,7 +43,7 @@ def test_mission_png_has_size_and_terrain_colours(tmp_path: Path, maps: tuple, w
     width, height = render.mission_figure_size(with_risk)
     assert image.shape[:2] == (height, width)
     for k in (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET, Terrain.LAVA):
-        assert colour_present(image, render.TERRAIN_COLORS[k]), k
+        assert colour_present(image, TERRAIN_COLORS[k]), k
     assert colour_present(image, "#1f3fff")  # first path colour
     # The risk panel adds pixels of its colour map's bright end only when a risk map is given.
     assert colour_present(image, "#fcffa4", tolerance=6 / 255) == with_risk
@@ -56,9 +56,9 @@ def test_row_zero_is_drawn_at_the_bottom(tmp_path: Path) -> None:
     path = tmp_path / "rows.png"
     render.save_mission_figure(path, labels, labels, {}, title="rows")
     image = mpimg.imread(path)
-    lava_rows = pixel_rows_of(image, render.TERRAIN_COLORS[Terrain.LAVA])
-    target_rows = pixel_rows_of(image, render.TERRAIN_COLORS[Terrain.TARGET])
-    dirt_rows = pixel_rows_of(image, render.TERRAIN_COLORS[Terrain.DIRT])
+    lava_rows = pixel_rows_of(image, TERRAIN_COLORS[Terrain.LAVA])
+    target_rows = pixel_rows_of(image, TERRAIN_COLORS[Terrain.TARGET])
+    dirt_rows = pixel_rows_of(image, TERRAIN_COLORS[Terrain.DIRT])
     # Image rows grow downwards; legend swatches are excluded by taking the medians of the
     # map cells (each map row is many pixels tall, swatches a few).
     assert np.median(lava_rows) > np.median(dirt_rows) > np.median(target_rows)

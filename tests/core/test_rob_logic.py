@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
 from ird_ros.jobs.rob_logic import RobExecutor
 
@@ -55,16 +55,16 @@ def test_final_status_matches_lavaland(seed: int, length: int) -> None:
     assert [s.done for s in statuses] == [False] * (length - 1) + [True]
     final = statuses[-1]
     assert final.horizon == length - 1
-    assert final.touched_lava == lavaland.touches_lava(labels, cells)
-    assert final.reached_target == lavaland.reaches_target(labels, cells)
-    assert final.true_return == pytest.approx(lavaland.true_return(labels, cells), abs=1e-12)
+    assert final.touched_lava == evaluation.touches_lava(labels, cells)
+    assert final.reached_target == evaluation.reaches_target(labels, cells)
+    assert final.true_return == pytest.approx(evaluation.true_return(labels, cells), abs=1e-12)
     assert final.plan_label == "lbl" and final.plan_stamp == ("s", seed)
     # Every intermediate status evaluates the prefix executed so far.
     for k, status in enumerate(statuses):
         prefix = cells[: k + 1]
         assert status.terrain == TERRAIN_NAMES[labels[prefix[-1]]]
-        assert status.true_return == pytest.approx(lavaland.true_return(labels, prefix), abs=1e-12)
-        assert status.touched_lava == lavaland.touches_lava(labels, prefix)
+        assert status.true_return == pytest.approx(evaluation.true_return(labels, prefix), abs=1e-12)
+        assert status.touched_lava == evaluation.touches_lava(labels, prefix)
     assert rob.tick() is None and not rob.active
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ird_core import mcmc, posterior
-from ird_core.posterior.sampler import RunUntil
+from ird_core.posterior import RunUntil
 from ird_core.worlds import lavaland
 
 # A 5x5 world whose short run (4 chains, 20 warm-up iterations, 120 after) has split R-hat
@@ -149,9 +149,9 @@ def test_until_converged_must_be_a_run_until(world: tuple) -> None:
 
 
 def test_a_hopeless_run_gives_up_at_its_first_check_past_give_up_after(world: tuple, monkeypatch) -> None:
-    from ird_core.posterior import sampler
+    from ird_core.posterior import run_until
 
-    monkeypatch.setattr(sampler, "GIVE_UP_R_HAT", 1.0)  # every unconverged check is "hopeless"
+    monkeypatch.setattr(run_until, "GIVE_UP_R_HAT", 1.0)  # every unconverged check is "hopeless"
     rule = RunUntil(r_hat=1.05, min_ess=400.0, give_up_after=100)
     post = _sample(world, SEED_UNMIXED, until_converged=rule)
     # The first check (120 iterations) is past 100 and not converged: stop there, not at the cap.

@@ -17,6 +17,7 @@ from test_planning import brute_values, value_of
 
 from ird_core import planning as P
 from ird_core.mdp import GridMDP, validate_path
+from ird_core.planning import trajectory_limits, trajectory_milp
 from ird_core.planning import trajectory_solver as TS
 from ird_core.worlds import lavaland
 
@@ -34,15 +35,15 @@ def search_case(seed: int) -> tuple[GridMDP, np.ndarray]:
 
 def work_needed(monkeypatch: pytest.MonkeyPatch, plan: Callable[[], P.Plan]) -> tuple[P.Plan, int]:
     """The plan with no work limit, and the label expansions it spent."""
-    made: list[TS._Limits] = []
+    made: list[TS.Limits] = []
 
-    class Recording(TS._Limits):
+    class Recording(TS.Limits):
         def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
             super().__init__(*args, **kwargs)
             made.append(self)
 
     with monkeypatch.context() as patch:
-        patch.setattr(TS, "_Limits", Recording)
+        patch.setattr(TS, "Limits", Recording)
         result = plan()
     assert len(made) == 1
     return result, made[0].work
@@ -128,7 +129,8 @@ def test_under_a_work_limit_alone_the_clock_is_never_read(case: str, limits: tup
                 real = outcome(call)
                 calls: list[float] = []
                 with monkeypatch.context() as patch:
-                    patch.setattr(TS, "time", jumping_clock(calls))
+                    for module in (trajectory_limits, trajectory_milp):
+                        patch.setattr(module, "time", jumping_clock(calls))
                     jumped = outcome(call)
                 assert jumped == real
                 assert calls == []
@@ -141,7 +143,9 @@ def test_the_clock_still_rules_when_a_time_limit_is_given(monkeypatch: pytest.Mo
     # (generous) work limit, stops the plan, and says so.
     mdp, weights = search_case(0)
     with monkeypatch.context() as patch:
-        patch.setattr(TS, "time", jumping_clock([]))
+        clock = jumping_clock([])
+        for module in (trajectory_limits, trajectory_milp):
+            patch.setattr(module, "time", clock)
         with pytest.raises(P.PlanningTimeout) as info:
             P.plan_path(mdp, weights, "trajectory", time_limit=60.0, work_limit=10**12)
     assert info.value.reason == "time"
@@ -163,11 +167,11 @@ def test_the_milp_is_never_run_under_a_work_limit(seed: int, monkeypatch: pytest
         raise AssertionError("the MILP ran")
 
     monkeypatch.setattr(TS, "_LABEL_BUDGET", 10 * len(weights))
-    monkeypatch.setattr(TS, "milp", refuse)
+    monkeypatch.setattr(trajectory_milp, "milp", refuse)
     with pytest.raises(AssertionError):  # the patch does catch the fallback ...
         P.plan_path(mdp, weights, "trajectory")
     assert ran == ["milp"]
-    monkeypatch.setattr(TS, "_run_highs", refuse)
+    monkeypatch.setattr(trajectory_milp, "_run_highs", refuse)
     with pytest.raises(P.PlanningTimeout) as info:  # ... which a work limit turns off
         P.plan_path(mdp, weights, "trajectory", work_limit=10**12)
     assert ran == ["milp"]

@@ -14,7 +14,7 @@ from PIL import Image
 
 from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
-from ird_core.worlds import lavaland, world_file
+from ird_core.worlds import evaluation, lavaland, world_file
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
@@ -175,7 +175,7 @@ def test_hand_written_gaussians_draw_from_their_terrain(tmp_path: Path) -> None:
 
 def _plans(inst: lavaland.LavalandInstance, samples: np.ndarray):
     literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
-    reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+    reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     ird = planning.plan_path(lavaland.test_mdp(inst), samples, "per_step", "training_features", reference)
     return literal.cells, ird.cells
 
@@ -196,9 +196,9 @@ def test_lavaland_round_trip(tmp_path: Path, condition: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # short chains: only equality matters
         before = posterior.sample_posterior(original.proxy_weights, lavaland.train_mdp(original), 5.0, "maxent_z",
-                                            40, 3, proxy_features=lavaland.proxy_feature_expectations(original),
+                                            40, 3, proxy_features=posterior.proxy_feature_expectations(original),
                                             **options)
-        after = posterior.sample_joint_posterior(lavaland.proxy_observations(loaded), 5.0, "maxent_z", 40, 3,
+        after = posterior.sample_joint_posterior(posterior.proxy_observations(loaded), 5.0, "maxent_z", 40, 3,
                                                  **options)
     np.testing.assert_array_equal(after.samples, before.samples)
     assert _plans(loaded, after.samples) == _plans(original, before.samples)
@@ -206,10 +206,10 @@ def test_lavaland_round_trip(tmp_path: Path, condition: str) -> None:
 
 def test_proxy_observations_of_a_lavaland_instance_carry_sample_z_counts() -> None:
     inst = lavaland.make_instance("latent_classifier", 2, size=5, horizon=5, obs_dim=4)
-    (obs,) = lavaland.proxy_observations(inst, num_proxy_samples=30, seed=9, prior_sigma=0.5)
-    np.testing.assert_array_equal(obs.proxy_features, lavaland.proxy_feature_expectations(inst))
-    np.testing.assert_array_equal(obs.proxy_sample_features, lavaland.proxy_prior_features(inst, 30, 9, 0.5))
-    assert lavaland.proxy_observations(inst)[0].proxy_sample_features is None
+    (obs,) = posterior.proxy_observations(inst, num_proxy_samples=30, seed=9, prior_sigma=0.5)
+    np.testing.assert_array_equal(obs.proxy_features, posterior.proxy_feature_expectations(inst))
+    np.testing.assert_array_equal(obs.proxy_sample_features, posterior.proxy_prior_features(inst, 30, 9, 0.5))
+    assert posterior.proxy_observations(inst)[0].proxy_sample_features is None
 
 
 @pytest.mark.parametrize("method", ["maxent_z", "sample_z"])
@@ -217,7 +217,7 @@ def test_two_training_worlds_enter_the_joint_posterior(method: str) -> None:
     inst = world_file.load_world(WORLDS / "two_training_worlds.yaml")
     (second,) = inst.extra_training_worlds
     assert not (inst.train_labels == Terrain.GRASS).any() and (second.labels == Terrain.GRASS).any()
-    observations = lavaland.proxy_observations(inst)
+    observations = posterior.proxy_observations(inst)
     by_hand = [posterior.ProxyObservation(inst.proxy_weights, GridMDP(inst.train_features, inst.train_start,
                                                                       inst.train_horizon)),
                posterior.ProxyObservation(second.proxy_weights, GridMDP(second.features, second.start,
@@ -246,7 +246,7 @@ def test_two_training_worlds_enter_the_joint_posterior(method: str) -> None:
 def test_two_training_worlds_sample_as_the_joint_posterior() -> None:
     inst = world_file.load_world(WORLDS / "two_training_worlds.yaml")
     options = dict(num_chains=4, warmup=20, thin=1)
-    observations = lavaland.proxy_observations(inst)
+    observations = posterior.proxy_observations(inst)
     second = inst.extra_training_worlds[0]
     by_hand = observations[:1] + [posterior.ProxyObservation(
         second.proxy_weights, GridMDP(second.features, second.start, second.horizon))]
@@ -264,8 +264,8 @@ def test_shipped_examples_load_and_match_their_generator(tmp_path: Path, name: s
     assert inst.true_terrain_reward is not None
     literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
     if name != "two_training_worlds":  # the scenes put lava on the proxy's shortcut
-        assert lavaland.touches_lava(inst.test_labels, literal.cells)
-    assert lavaland.reaches_target(inst.test_labels, literal.cells)
+        assert evaluation.touches_lava(inst.test_labels, literal.cells)
+    assert evaluation.reaches_target(inst.test_labels, literal.cells)
     # The committed PNGs are what worlds/make_examples.py draws.
     for png in WORLDS.glob(f"{name}_*.png"):
         assert png.stat().st_size > 0
@@ -283,5 +283,5 @@ def test_lavaland_instances_keep_their_defaults() -> None:
     assert inst.terrain_names == TERRAIN_NAMES and inst.extra_training_worlds == ()
     assert inst.true_terrain_reward is lavaland.TRUE_TERRAIN_REWARD
     cells = [inst.test_start]
-    assert lavaland.true_return(inst.test_labels, cells) == lavaland.true_return(
+    assert evaluation.true_return(inst.test_labels, cells) == evaluation.true_return(
         inst.test_labels, cells, inst.true_terrain_reward)

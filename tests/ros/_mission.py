@@ -8,31 +8,18 @@ from typing import Any
 
 import numpy as np
 
-from ird_msgs.srv import PlanPath
-from ird_ros.client.waits import call_service, spin_until
-from ird_ros.graph import names
+from ird_ros.client import IrdClient, plan_request
 
 
-def drive_ird_plan(node: Any, proxy: Any, samples: Any, reference: np.ndarray,
-                   status: list) -> dict[str, Any]:
-    """Plan from ``proxy``'s test start and horizon; ``status`` collects /rob/status messages.
+def drive_ird_plan(ird: IrdClient, proxy: Any, samples: np.ndarray, reference: np.ndarray) -> dict[str, Any]:
+    """Plan from ``proxy``'s test start and horizon (``ird.watch_rob()`` called before).
 
     Returns ``plan_cells`` (T+1 (row, col)), ``final`` (Rob's last status for the plan) and
     ``statuses`` (all of them).
     """
-    plan_req = PlanPath.Request()
-    plan_req.start_row, plan_req.start_col = proxy.test_start_row, proxy.test_start_col
-    plan_req.horizon = proxy.test_horizon
-    plan_req.mode, plan_req.baseline, plan_req.label = "per_step", "training_features", "ird"
-    plan_req.weights = list(samples)
-    plan_req.reference_features = list(reference)
-    plan = call_service(node, node.create_client(PlanPath, names.SRV_PLAN), plan_req, timeout=120)
-    assert plan.success, plan.message
-    stamp = plan.path.header.stamp
-    spin_until(node, lambda: any(s.done and s.plan_stamp == stamp for s in status), timeout=60,
-               what="Rob finishing the plan")
-    return {
-        "plan_cells": list(zip(plan.rows, plan.cols)),
-        "final": [s for s in status if s.done and s.plan_stamp == stamp][-1],
-        "statuses": [s for s in status if s.plan_stamp == stamp],
-    }
+    request = plan_request((proxy.test_start_row, proxy.test_start_col), proxy.test_horizon, "per_step",
+                           "training_features", weights=samples, reference_features=reference, label="ird")
+    result = ird.plan(request, timeout=120)
+    assert result.ok, result.message
+    drive = ird.wait_for_rob(result.unwrap(), timeout=60)
+    return {"plan_cells": list(result.unwrap().cells), "final": drive.final, "statuses": list(drive.statuses)}

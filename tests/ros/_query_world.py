@@ -1,23 +1,22 @@
 """Shared by the /ird/query and designer DDS tests: a small world (8x8, T = 12, side_effects),
-fast sampler settings, and a probe node with the services' clients and the latched inputs."""
+fast sampler settings, and a probe: an IrdClient that collects the conversation with the designer."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-import rclpy
-
-from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
-from ird_msgs.srv import AnswerQuery, GenerateWorld, InferReward, ProposeQuery
+from ird_ros.client import CallResult, IrdClient, Query, WorldMessages, infer_request, query_request
+from ird_ros.conversions import PosteriorData
 from ird_ros.graph import names
-from ird_ros.testing import NodeProcess, call_service, spin_until, wait_for_service
+from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
 SIZE, HORIZON = 8, 12
 SAMPLER_ARGS = ["-p", "num_chains:=4", "-p", "warmup:=40", "-p", "thin:=1"]
 NUM_SAMPLES = 400
+SERVICES = (names.SRV_INFER, names.SRV_QUERY, names.SRV_ANSWER, names.SRV_GENERATE)
 
 
 def world_args(seed: int) -> list[str]:
@@ -30,58 +29,46 @@ def node_args(module: str, extra: list[str]) -> list[str]:
 
 
 class Probe:
-    """The test's node: clients of every service and the latched inputs it needs."""
+    """The test's client of the graph (an ``IrdClient`` whose waits watch ``procs``), collecting
+    /ird/queries and /ird/posterior from the start."""
 
     def __init__(self, ctx: Any, procs: list[NodeProcess], name: str = "query_test_probe") -> None:
-        self.node = rclpy.create_node(name, context=ctx)
-        self.procs = list(procs)
-        self.clients = {
-            name: self.node.create_client(srv, name)
-            for name, srv in ((names.SRV_INFER, InferReward), (names.SRV_QUERY, ProposeQuery),
-                              (names.SRV_ANSWER, AnswerQuery), (names.SRV_GENERATE, GenerateWorld))
-        }
-        for client in self.clients.values():
-            wait_for_service(self.node, client, processes=procs, timeout=30.0)
-        self.latest: dict[str, Any] = {}
-        self.records: list[QueryRecord] = []
-        self.posteriors: list[RewardPosterior] = []
-        latched = names.latched_qos()
-        for topic, msg_type in ((names.TOPIC_TRAIN_FEATURES, FeatureGrid), (names.TOPIC_TEST_FEATURES, FeatureGrid),
-                                (names.TOPIC_TERRAIN, TerrainGrid), (names.TOPIC_PROXY, ProxyReward)):
-            self.node.create_subscription(msg_type, topic, lambda m, t=topic: self.latest.__setitem__(t, m), latched)
-        self.node.create_subscription(QueryRecord, names.TOPIC_QUERIES, self.records.append, names.history_qos())
-        self.node.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self.posteriors.append, latched)
+        self.ird = IrdClient(context=ctx, node_name=name, processes=procs)
+        self.procs = self.ird.processes  # tests add and remove helper processes here
+        self.ird.wait_ready(30.0, services=SERVICES)
+        self.ird.subscribe(names.TOPIC_QUERIES, names.TOPIC_POSTERIOR)
+
+    def close(self) -> None:
+        self.ird.close()
+
+    @property
+    def records(self) -> list[Any]:
+        """Every /ird/queries record received (ird_msgs/QueryRecord)."""
+        return self.ird.received(names.TOPIC_QUERIES)
+
+    @property
+    def posteriors(self) -> list[Any]:
+        """Every /ird/posterior message received (ird_msgs/RewardPosterior)."""
+        return self.ird.received(names.TOPIC_POSTERIOR)
 
     def spin_until(self, cond: Any, what: str, timeout: float = 60.0) -> None:
-        spin_until(self.node, cond, timeout=timeout, what=what, processes=self.procs)
+        self.ird.spin_until(cond, timeout=timeout, what=what)
 
-    def call(self, service: str, request: Any, timeout: float = 120.0) -> Any:
-        return call_service(self.node, self.clients[service], request, timeout=timeout, processes=self.procs)
-
-    def world(self, stamp_after: Any = None) -> tuple[FeatureGrid, FeatureGrid, ProxyReward]:
+    def world(self, other_than: WorldMessages | None = None) -> WorldMessages:
         """The latest world's maps and proxy (all of one generation: same header stamp)."""
-        def complete() -> bool:
-            msgs = [self.latest.get(t) for t in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES,
-                                                 names.TOPIC_PROXY)]
-            if any(m is None for m in msgs) or len({(m.header.stamp.sec, m.header.stamp.nanosec) for m in msgs}) != 1:
-                return False
-            return stamp_after is None or msgs[2].header.stamp != stamp_after
-        self.spin_until(complete, "a complete world")
-        return (self.latest[names.TOPIC_TRAIN_FEATURES], self.latest[names.TOPIC_TEST_FEATURES],
-                self.latest[names.TOPIC_PROXY])
+        return self.ird.world(other_than=other_than, timeout=60.0)
 
-    def infer(self, train: FeatureGrid, proxy: ProxyReward, seed: int = 5) -> InferReward.Response:
-        req = InferReward.Request(training_map=train, start_row=proxy.start_row, start_col=proxy.start_col,
-                                  horizon=proxy.horizon, proxy_weights=proxy.weights, beta=2.0, method="maxent_z",
-                                  num_samples=NUM_SAMPLES, seed=seed)
-        response = self.call(names.SRV_INFER, req)
-        assert response.success, response.message
-        return response
+    def infer(self, world: WorldMessages, seed: int = 5) -> PosteriorData:
+        proxy = world.proxy
+        request = infer_request(world.train, (proxy.start_row, proxy.start_col), proxy.horizon, proxy.weights,
+                                beta=2.0, method="maxent_z", num_samples=NUM_SAMPLES, seed=seed)
+        result = self.ird.infer(request, timeout=120.0)
+        assert result.ok, result.message
+        return result.unwrap()
 
-    def query(self, proxy: ProxyReward, **kw: Any) -> ProposeQuery.Response:
-        req = ProposeQuery.Request(start_row=proxy.test_start_row, start_col=proxy.test_start_col, **kw)
-        return self.call(names.SRV_QUERY, req)
+    def query(self, proxy: Any, **kw: Any) -> CallResult[Query]:
+        return self.ird.propose_query(query_request((proxy.test_start_row, proxy.test_start_col), **kw),
+                                      timeout=120.0)
 
-    def answer(self, query_id: int, chosen: int, beta: float = 0.0) -> AnswerQuery.Response:
-        return self.call(names.SRV_ANSWER, AnswerQuery.Request(query_id=query_id, chosen=chosen, beta=beta,
-                                                               answered_by="client"))
+    def answer(self, query_id: int, chosen: int, beta: float = 0.0) -> CallResult[PosteriorData]:
+        return self.ird.answer(query_id, chosen, beta=beta, answered_by="client", timeout=120.0)

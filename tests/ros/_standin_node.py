@@ -7,7 +7,8 @@ each topic of that node's ``publishes`` (type from ``names.TOPIC_TYPES``, QoS fr
 ``services`` with default responses, and publishes one default message on each latched topic
 at start (so ``ready_topics`` become satisfied). It exits 0 on SIGINT/SIGTERM.
 
-``STANDIN_SPECS`` is the launcher's node table with every node replaced by this stand-in.
+``STANDIN_SPECS`` is the graph's table of default nodes (``ird_ros.graph.NODES``) with every
+node run as this stand-in.
 """
 
 from __future__ import annotations
@@ -15,22 +16,16 @@ from __future__ import annotations
 import importlib
 import signal
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 from ird_ros import graph
-from ird_ros.graph import names  # noqa: E402
-from ird_ros.launch.launcher import LaunchSpec, graph_specs  # noqa: E402
+from ird_ros.graph import names
 
 SCRIPT = str(Path(__file__).resolve())
 
-STANDIN_SPECS = [
-    LaunchSpec(name=s.name, module=s.module, publishes=s.publishes, services=s.services,
-               ready_topics=s.ready_topics, after=s.after, script=SCRIPT, ros_args=("-r", f"__node:={s.name}"))
-    for s in graph_specs()
-]
+STANDIN_SPECS = [replace(s, script=SCRIPT, ros_args=("-r", f"__node:={s.name}")) for s in graph.NODES if s.default]
 
 
 def _load(typename: str) -> Any:

@@ -5,11 +5,11 @@ the service, then all call it at once. Every call must be answered: a posterior,
 ``success: false`` with "busy" and a queue position. Silence is the failure this guards.
 
 Two queues of depth 10 (rclpy's default service QoS) lost answers: the server's request reader
-(a burst of 32 requests arriving before the executor took them: 11 answered) and each client's
+(a burst arriving before the executor took it lost the oldest requests) and each client's
 response reader, which receives the responses to every client of the service (a burst of
 immediate "busy" answers pushed a client's own response out before it was taken). The nodes
-serve with ``ird_ros.runtime.offload.service_qos()`` and the clients here use it too, as the project's
-scripts do.
+serve with ``ird_ros.runtime.offload.service_qos()`` and ``ird_ros.client.IrdClient`` (the clients
+here, as every program of the project) calls with it too.
 """
 
 from __future__ import annotations
@@ -18,15 +18,14 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 from ird_core.worlds import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
+from ird_ros.client import CallStatus, IrdClient, infer_request
 from ird_ros.graph import names
-from ird_ros.runtime.offload import service_qos
-from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process, spin_until
+from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -43,57 +42,46 @@ def inference(ros_domain: DomainLease) -> Iterator[NodeProcess]:
 
 
 def _request(inst: lavaland.LavalandInstance, seed: int) -> InferReward.Request:
-    req = InferReward.Request()
-    req.training_map = conv.feature_grid_to_msg(inst.train_features, inst.feature_names)
-    req.start_row, req.start_col = inst.train_start
-    req.horizon = inst.train_horizon
-    req.proxy_weights = conv.weights_to_flat(inst.proxy_weights)
-    req.beta, req.method, req.num_samples, req.seed = 2.0, "maxent_z", 8, seed
-    return req
+    return infer_request(conv.feature_grid_to_msg(inst.train_features, inst.feature_names), inst.train_start,
+                         inst.train_horizon, inst.proxy_weights, beta=2.0, method="maxent_z", num_samples=8, seed=seed)
 
 
 def test_every_client_of_a_burst_gets_an_answer(ros_ctx: Any, inference: NodeProcess) -> None:
     inst = lavaland.make_instance("side_effects", 1, size=3, horizon=3)
     executor = SingleThreadedExecutor(context=ros_ctx)
-    nodes, clients = [], []
+    clients: list[IrdClient] = []
     try:
         for i in range(NUM_CLIENTS):
-            node = rclpy.create_node(f"burst_client_{i}", context=ros_ctx)
-            executor.add_node(node)
-            nodes.append(node)
-            clients.append(node.create_client(InferReward, names.SRV_INFER, qos_profile=service_qos()))
-        spin_until(nodes[0], lambda: all(c.service_is_ready() for c in clients), timeout=60.0,
-                   what="every client to discover /ird/infer", executor=executor, processes=[inference])
-        futures = [c.call_async(_request(inst, seed=i)) for i, c in enumerate(clients)]
-        spin_until(nodes[0], lambda: all(f.done() for f in futures), timeout=120.0,
-                   what=f"answers to {NUM_CLIENTS} concurrent requests", executor=executor, processes=[inference])
-        responses = [f.result() for f in futures]
-        answered = [r for r in responses if r.success]
-        busy = [r for r in responses if not r.success]
+            clients.append(IrdClient(context=ros_ctx, node_name=f"burst_client_{i}", executor=executor,
+                                     processes=[inference]))
+        clients[0].spin_until(lambda: all(c.is_ready(names.SRV_INFER) for c in clients), timeout=60.0,
+                              what="every client to discover /ird/infer")
+        pending = [c.infer_async(_request(inst, seed=i)) for i, c in enumerate(clients)]
+        clients[0].spin_until(lambda: all(p.done() for p in pending), timeout=120.0,
+                              what=f"answers to {NUM_CLIENTS} concurrent requests")
+        results = [p.result() for p in pending]
+        answered = [r for r in results if r.ok]
+        busy = [r for r in results if not r.ok]
         for r in busy:
-            assert r.message.startswith("busy") and "queue position" in r.message, r.message
-        assert all(r.posterior.num_samples == 8 for r in answered)
+            assert r.status is CallStatus.BUSY and "queue position" in r.message, r.message
+        assert all(r.response.posterior.num_samples == 8 and r.unwrap().samples.shape[0] == 8 for r in answered)
         # max_pending = 8: at least that many were computed, and the rest were told why not.
         assert len(answered) >= 8, [r.message for r in busy]
         print(f"{len(answered)} computed, {len(busy)} busy of {NUM_CLIENTS}")
     finally:
+        for client in clients:
+            client.close()
         executor.shutdown()
-        for node in nodes:
-            node.destroy_node()
 
 
 def test_one_client_node_with_a_burst_of_calls(ros_ctx: Any, inference: NodeProcess) -> None:
     """The second report: 32 calls from one client node (its own request and response queues)."""
     inst = lavaland.make_instance("side_effects", 2, size=3, horizon=3)
-    node = rclpy.create_node("burst_single_client", context=ros_ctx)
-    try:
-        client = node.create_client(InferReward, names.SRV_INFER, qos_profile=service_qos())
-        spin_until(node, client.service_is_ready, timeout=60.0, what="/ird/infer", processes=[inference])
-        futures = [client.call_async(_request(inst, seed=i)) for i in range(NUM_CLIENTS)]
-        spin_until(node, lambda: all(f.done() for f in futures), timeout=120.0,
-                   what=f"answers to {NUM_CLIENTS} calls of one client", processes=[inference])
-        responses = [f.result() for f in futures]
-        assert all(r.success or (r.message.startswith("busy") and "queue position" in r.message) for r in responses)
-        assert sum(r.success for r in responses) >= 8
-    finally:
-        node.destroy_node()
+    with IrdClient(context=ros_ctx, node_name="burst_single_client", processes=[inference]) as ird:
+        ird.wait_ready(60.0, services=(names.SRV_INFER,))
+        pending = [ird.infer_async(_request(inst, seed=i)) for i in range(NUM_CLIENTS)]
+        ird.spin_until(lambda: all(p.done() for p in pending), timeout=120.0,
+                       what=f"answers to {NUM_CLIENTS} calls of one client")
+        results = [p.result() for p in pending]
+        assert all(r.ok or (r.status is CallStatus.BUSY and "queue position" in r.message) for r in results)
+        assert sum(r.ok for r in results) >= 8

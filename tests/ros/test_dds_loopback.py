@@ -19,19 +19,12 @@ from typing import Any, Iterator
 import pytest
 
 from ird_msgs.msg import ProxyReward, TerrainGrid
-from ird_msgs.srv import GenerateWorld
+from ird_ros.client import IrdClient
 from ird_ros.graph import names
 from ird_ros.graph.domains import DDS_PROFILE, DDS_PROFILE_VAR, dds_env
-from ird_ros.launch.launcher import GraphLauncher
-from ird_ros.testing import (
-    DomainLease,
-    NodeProcess,
-    call_service,
-    lease_domain,
-    running_nodes,
-    spawn_node_process,
-    spin_until,
-)
+from ird_ros.launch import GraphLauncher
+from ird_ros.graph.domains import lease_domain
+from ird_ros.testing import DomainLease, NodeProcess, running_nodes, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -182,24 +175,21 @@ def test_node_processes_bind_nothing_outside_loopback(graph: list[NodeProcess]) 
         assert outside_loopback(proc.pid) == [], (proc.name, sockets)
 
 
-def test_nodes_still_talk_over_loopback(graph: list[NodeProcess], ros_node: Any) -> None:
+def test_nodes_still_talk_over_loopback(graph: list[NodeProcess], ros_ctx: Any) -> None:
     """A service call to world; world's latched proxy, and perception's latched classes
     computed from world's new map (node to node), both reach this process."""
-    proxies: list[ProxyReward] = []
-    classes: list[TerrainGrid] = []
-    ros_node.create_subscription(ProxyReward, names.TOPIC_PROXY, proxies.append, names.latched_qos())
-    ros_node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, classes.append, names.latched_qos())
-    client = ros_node.create_client(GenerateWorld, names.SRV_GENERATE)
-    response = call_service(ros_node, client, GenerateWorld.Request(condition="reward_hacking", seed=11),
-                            processes=graph)
-    assert response.success, response.message
+    with IrdClient(context=ros_ctx, node_name="loopback_probe", processes=graph) as ird:
+        ird.subscribe(names.TOPIC_PROXY, names.TOPIC_TERRAIN_CLASSES)
+        proxies: list[ProxyReward] = ird.received(names.TOPIC_PROXY)
+        classes: list[TerrainGrid] = ird.received(names.TOPIC_TERRAIN_CLASSES)
+        response = ird.generate_world("reward_hacking", 11, timeout=30.0)
+        assert response.ok, response.message
 
-    def classes_of_new_map() -> bool:
-        new = [p.header.stamp for p in proxies if (p.condition, p.seed) == ("reward_hacking", 11)]
-        return bool(new) and any(c.header.stamp == new[-1] for c in classes)
+        def classes_of_new_map() -> bool:
+            new = [p.header.stamp for p in proxies if (p.condition, p.seed) == ("reward_hacking", 11)]
+            return bool(new) and any(c.header.stamp == new[-1] for c in classes)
 
-    spin_until(ros_node, classes_of_new_map, timeout=30.0, what="perception's classes of the new map",
-               processes=graph)
+        ird.spin_until(classes_of_new_map, timeout=30.0, what="perception's classes of the new map")
 
 
 def test_the_launcher_gives_loopback_dds_to_a_graph_started_from_a_plain_shell() -> None:

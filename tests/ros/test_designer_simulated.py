@@ -1,6 +1,6 @@
 """The simulated designer node over real DDS (world + inference + designer, 8x8, T = 12):
 every proposal of a mission gets exactly one answer, the one ``SimulatedDesigner(beta, seed)``
-gives on the options' true returns (``lavaland.true_return`` on the world's terrain), recorded
+gives on the options' true returns (``evaluation.true_return`` on the world's terrain), recorded
 on /ird/queries; a designer killed with a query open leaves the inference node serving, and a
 respawned one answers the open query from the latched history."""
 
@@ -15,7 +15,8 @@ from _query_world import SAMPLER_ARGS, Probe, node_args, world_args
 from nav_msgs.msg import OccupancyGrid
 
 from ird_core.designer.queries import SimulatedDesigner
-from ird_core.worlds import lavaland
+from ird_core.vocabulary import QueryEvent
+from ird_core.worlds import evaluation
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
@@ -31,32 +32,35 @@ class Mission(Probe):
 
     def __init__(self, ctx: Any, procs: list[NodeProcess]) -> None:
         super().__init__(ctx, procs, name="designer_test_probe")
-        train, _, self.proxy = self.world()
-        self.infer(train, self.proxy, seed=3)
-        self.spin_until(lambda: names.TOPIC_TERRAIN in self.latest, "the terrain")
-        self.labels = conv.terrain_grid_from_msg(self.latest[names.TOPIC_TERRAIN]).classes
-        self.risk_maps: list[OccupancyGrid] = []
-        self.node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self.risk_maps.append, names.latched_qos())
+        world = self.world()
+        self.proxy = world.proxy
+        self.infer(world, seed=3)
+        self.labels = conv.terrain_grid_from_msg(self.ird.latest(names.TOPIC_TERRAIN, timeout=60.0)).classes
+        self.ird.subscribe(names.TOPIC_RISK_MAP)
+
+    @property
+    def risk_maps(self) -> list[OccupancyGrid]:
+        return self.ird.received(names.TOPIC_RISK_MAP)
 
     def propose(self, seed: int) -> int:
         response = self.query(self.proxy, num_options=2, strategy="random", seed=seed)
-        assert response.success, response.message
-        return int(response.query_id)
+        assert response.ok, response.message
+        return response.unwrap().query_id
 
-    def answers(self, query_id: int) -> list[qr.QueryEvent]:
-        return [e for e in self.events() if e.query_id == query_id and e.event == qr.ANSWERED]
+    def answers(self, query_id: int) -> list[qr.QueryRecordData]:
+        return [e for e in self.events() if e.query_id == query_id and e.event == QueryEvent.ANSWERED]
 
-    def events(self) -> list[qr.QueryEvent]:
+    def events(self) -> list[qr.QueryRecordData]:
         return [qr.event_from_msg(r) for r in self.records]
 
-    def wait_answered(self, query_id: int) -> qr.QueryEvent:
+    def wait_answered(self, query_id: int) -> qr.QueryRecordData:
         self.spin_until(lambda: bool(self.answers(query_id)), f"an answer to query {query_id}")
         return self.answers(query_id)[0]
 
-    def expected_choices(self, proposals: list[qr.QueryEvent]) -> list[int]:
-        """What SimulatedDesigner(beta, seed) answers, in order, on lavaland.true_return of the options."""
+    def expected_choices(self, proposals: list[qr.QueryRecordData]) -> list[int]:
+        """What SimulatedDesigner(beta, seed) answers, in order, on evaluation.true_return of the options."""
         designer = SimulatedDesigner(DESIGNER_BETA, DESIGNER_SEED)
-        return [designer.answer(np.array([lavaland.true_return(self.labels, cells) for cells in p.options]))
+        return [designer.answer(np.array([evaluation.true_return(self.labels, cells) for cells in p.options]))
                 for p in proposals]
 
 
@@ -67,7 +71,7 @@ def mission(ros_domain: DomainLease, ros_ctx: Any) -> Iterator[Mission]:
                        ("planner", node_args("ird_ros.nodes.planner", []))) as procs:
         m = Mission(ros_ctx, procs)
         yield m
-        m.node.destroy_node()
+        m.close()
 
 
 def _designer(ros_domain: DomainLease) -> NodeProcess:
@@ -88,11 +92,11 @@ def test_simulated_designer_answers_a_whole_mission(mission: Mission, ros_domain
             # The planner reacts to every re-sampled posterior with a new risk map.
             mission.spin_until(lambda n=risk_maps: len(mission.risk_maps) > n, "a risk map of the re-sampled posterior")
         events = mission.events()
-        proposals = [e for e in events if e.event == qr.PROPOSED]
+        proposals = [e for e in events if e.event == QueryEvent.PROPOSED]
         rounds = qr.rounds_from_events(events)
         assert [r.query_id for r in rounds] == ids and [p.query_id for p in proposals] == ids
         assert all(r.answer is not None for r in rounds)
-        assert len([e for e in events if e.event == qr.ANSWERED]) == ROUNDS  # one answer per proposal
+        assert len([e for e in events if e.event == QueryEvent.ANSWERED]) == ROUNDS  # one answer per proposal
         assert [r.chosen for r in rounds] == mission.expected_choices(proposals)
         mission.procs.remove(designer)
     assert designer.returncode == 0, designer.describe()
@@ -115,7 +119,7 @@ def test_respawned_designer_answers_the_open_query(mission: Mission, ros_domain:
         assert answer.answered_by == "simulated" and answer.num_answers == 2
         # A fresh designer (same seed): its first choice, on the open query only; the answered
         # first query of the history is not answered again.
-        proposal = [e for e in mission.events() if e.query_id == second and e.event == qr.PROPOSED]
+        proposal = [e for e in mission.events() if e.query_id == second and e.event == QueryEvent.PROPOSED]
         assert answer.chosen == mission.expected_choices(proposal)[0]
         assert f"query {first}:" not in again.output() and len(mission.answers(first)) == 1
         mission.procs.remove(again)

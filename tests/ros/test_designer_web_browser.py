@@ -61,7 +61,7 @@ def graph(ros_domain: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     params["designer"]["ros__parameters"].update(mode="web", host="127.0.0.1", port=0)
     params_file = tmp / "graph.yaml"
     params_file.write_text(yaml.safe_dump(params))
-    nodes = [(name, ["-m", f"ird_ros.{name}", "--ros-args", "--params-file", str(params_file)])
+    nodes = [(name, ["-m", f"ird_ros.nodes.{name}", "--ros-args", "--params-file", str(params_file)])
              for name in ("world", "perception", "inference", "planner", "designer")]
     with running_nodes(ros_domain, *nodes) as procs:
         designer = procs[-1]
@@ -72,65 +72,46 @@ def graph(ros_domain: Any, tmp_path_factory: pytest.TempPathFactory) -> Iterator
 
 
 class Probe:
-    """The test's ROS side: the latched posterior, risk map and query history, and the services."""
+    """The test's ROS side: an IrdClient collecting the posteriors, risk maps and query history."""
 
     def __init__(self, ctx: Any, procs: list[Any]) -> None:
-        import rclpy
-        from nav_msgs.msg import OccupancyGrid
-
-        from ird_msgs.msg import QueryRecord, RewardPosterior
+        from ird_ros.client import IrdClient
         from ird_ros.graph import names
 
         self.procs = procs
-        self.node = rclpy.create_node("designer_web_probe", context=ctx)
-        self.posteriors: list[Any] = []
-        self.risk_maps: list[Any] = []
-        self.records: list[Any] = []
-        self.node.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self.posteriors.append,
-                                      names.latched_qos())
-        self.node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self.risk_maps.append, names.latched_qos())
-        self.node.create_subscription(QueryRecord, names.TOPIC_QUERIES, self.records.append, names.history_qos())
+        self.ird = IrdClient(context=ctx, node_name="designer_web_probe", processes=procs)
+        self.ird.subscribe(names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_QUERIES)
+        self.posteriors: list[Any] = self.ird.received(names.TOPIC_POSTERIOR)
+        self.risk_maps: list[Any] = self.ird.received(names.TOPIC_RISK_MAP)
+        self.records: list[Any] = self.ird.received(names.TOPIC_QUERIES)
 
     def until(self, condition: Any, what: str, timeout: float = 120.0) -> None:
-        from ird_ros.testing import spin_until
-
-        spin_until(self.node, condition, timeout=timeout, what=what, processes=self.procs)
-
-    def call(self, srv_type: Any, name: str, request: Any, timeout: float = 300.0) -> Any:
-        from ird_ros.testing import call_service
-
-        response = call_service(self.node, self.node.create_client(srv_type, name), request, timeout=timeout,
-                                processes=self.procs)
-        assert response.success, response.message
-        return response
+        self.ird.spin_until(condition, timeout=timeout, what=what)
 
 
 def infer_first_posterior(probe: Probe) -> Any:
     """The proxy's posterior (/ird/infer), which the questions start from; returns the proxy."""
-    from ird_msgs.msg import FeatureGrid, ProxyReward
-    from ird_msgs.srv import InferReward
+    from ird_ros.client import infer_request
     from ird_ros.graph import names
-    from ird_ros.testing import receive_messages
 
-    proxy = receive_messages(probe.node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
-    train = receive_messages(probe.node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
-    req = InferReward.Request()
-    req.training_map = train
-    req.start_row, req.start_col, req.horizon = proxy.start_row, proxy.start_col, proxy.horizon
-    req.proxy_weights = list(proxy.weights)
-    req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 100, 11
-    probe.call(InferReward, names.SRV_INFER, req)
+    proxy = probe.ird.proxy(timeout=60)
+    train = probe.ird.latest(names.TOPIC_TRAIN_FEATURES, timeout=60)
+    request = infer_request(train, (proxy.start_row, proxy.start_col), proxy.horizon, proxy.weights,
+                            beta=5.0, method="maxent_z", num_samples=100, seed=11)
+    result = probe.ird.infer(request, timeout=300.0)
+    assert result.ok, result.message
     return proxy
 
 
 def ask(probe: Probe, proxy: Any, seed: int) -> Any:
-    from ird_msgs.srv import ProposeQuery
-    from ird_ros.graph import names
+    """A question (/ird/query, info_gain, 2 options) on the test map; the decoded query."""
+    from ird_ros.client import query_request
 
-    req = ProposeQuery.Request()
-    req.start_row, req.start_col, req.horizon = proxy.test_start_row, proxy.test_start_col, proxy.test_horizon
-    req.num_options, req.strategy, req.seed = 2, "info_gain", seed
-    return probe.call(ProposeQuery, names.SRV_QUERY, req)
+    request = query_request((proxy.test_start_row, proxy.test_start_col), horizon=proxy.test_horizon,
+                            num_options=2, strategy="info_gain", seed=seed)
+    result = probe.ird.propose_query(request, timeout=300.0)
+    assert result.ok, result.message
+    return result.unwrap()
 
 
 def shown_query(driver: webdriver.Chrome, query_id: int) -> list[Any]:
@@ -200,4 +181,4 @@ def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver
         SCREENSHOT.parent.mkdir(exist_ok=True)
         assert browser.save_screenshot(str(SCREENSHOT)), "screenshot failed"
     finally:
-        probe.node.destroy_node()
+        probe.ird.close()

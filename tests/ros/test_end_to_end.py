@@ -18,7 +18,8 @@ import yaml
 
 from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
+from ird_ros import conversions as conv
 
 REPO = Path(__file__).resolve().parents[2]
 SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
@@ -26,16 +27,11 @@ SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
 
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    import rclpy
     from _mission import drive_ird_plan
-    from nav_msgs.msg import OccupancyGrid
 
-    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus
-    from ird_msgs.srv import InferReward
-    from ird_ros import conversions as conv
+    from ird_ros.client import IrdClient, infer_request
     from ird_ros.graph import names
-    from ird_ros.launch.launcher import GraphLauncher
-    from ird_ros.testing import call_service, receive_messages, ros_context, wait_for_publishers
+    from ird_ros.launch import GraphLauncher
 
     tmp = tmp_path_factory.mktemp("e2e")
     params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
@@ -48,38 +44,29 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     with GraphLauncher(params=params_file, record_dir=out["bag"], private_domain=True, output="quiet",
                        log_dir=tmp / "logs") as graph:
         graph.wait_ready(timeout=120)
-        with ros_context(graph.domain_id) as ctx:
-            node = rclpy.create_node("e2e_client", context=ctx)
-            try:
-                status: list = []
-                sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
-                wait_for_publishers(node, sub, timeout=60)
-                proxy = receive_messages(node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
-                train = receive_messages(node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
-                req = InferReward.Request()
-                req.training_map = train
-                req.start_row, req.start_col, req.horizon = proxy.start_row, proxy.start_col, proxy.horizon
-                req.proxy_weights = list(proxy.weights)
-                req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 40, 11
-                res = call_service(node, node.create_client(InferReward, names.SRV_INFER), req, timeout=300)
-                assert res.success, res.message
-                out["posterior"] = conv.posterior_from_msg(res.posterior)
-                out["train"] = conv.feature_grid_from_msg(train)
-                out["proxy"] = proxy
-                # "planner ready" does not mean the planner has matched the world, perception and
-                # inference yet: under load DDS discovery between two nodes can lag seconds, and
-                # the latched maps and posterior reach the planner only then. Its risk map (out
-                # once it holds the posterior and a test map) is the event that says it has its
-                # inputs; without this wait the plan could fail for want of a map, or the graph
-                # be stopped before the risk map was published (an empty /ird/risk_map in the bag).
-                receive_messages(node, OccupancyGrid, names.TOPIC_RISK_MAP, timeout=60)
+        with IrdClient(graph.domain_id, node_name="e2e_client") as ird:
+            ird.watch_rob(timeout=60)
+            proxy = ird.proxy(timeout=60)
+            train = ird.latest(names.TOPIC_TRAIN_FEATURES, timeout=60)
+            request = infer_request(train, (proxy.start_row, proxy.start_col), proxy.horizon, proxy.weights,
+                                    beta=5.0, method="maxent_z", num_samples=40, seed=11)
+            result = ird.infer(request, timeout=300)
+            assert result.ok, result.message
+            out["posterior"] = result.unwrap()
+            out["train"] = conv.feature_grid_from_msg(train)
+            out["proxy"] = proxy
+            # "planner ready" does not mean the planner has matched the world, perception and
+            # inference yet: under load DDS discovery between two nodes can lag seconds, and
+            # the latched maps and posterior reach the planner only then. Its risk map (out
+            # once it holds the posterior and a test map) is the event that says it has its
+            # inputs; without this wait the plan could fail for want of a map, or the graph
+            # be stopped before the risk map was published (an empty /ird/risk_map in the bag).
+            ird.risk_map(timeout=60)
 
-                inst = lavaland.make_instance("latent_raw", SEED, size=SIZE, horizon=HORIZON, obs_dim=OBS_DIM)
-                reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
-                out.update(drive_ird_plan(node, proxy, res.posterior.samples, reference, status))
-                out["inst"], out["reference"] = inst, reference
-            finally:
-                node.destroy_node()
+            inst = lavaland.make_instance("latent_raw", SEED, size=SIZE, horizon=HORIZON, obs_dim=OBS_DIM)
+            reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+            out.update(drive_ird_plan(ird, proxy, out["posterior"].samples, reference))
+            out["inst"], out["reference"] = inst, reference
     return out
 
 
@@ -109,14 +96,14 @@ def test_rob_executes_the_plan_and_judges_it_like_ird_core(mission: dict) -> Non
     assert tuple(cells) == tuple(expected.cells)
     final = mission["final"]
     assert final.step == inst.test_horizon and (final.row, final.col) == cells[-1]
-    assert final.touched_lava == lavaland.touches_lava(inst.test_labels, cells)
-    assert final.reached_target == lavaland.reaches_target(inst.test_labels, cells)
-    assert final.true_return == pytest.approx(lavaland.true_return(inst.test_labels, cells))
+    assert final.touched_lava == evaluation.touches_lava(inst.test_labels, cells)
+    assert final.reached_target == evaluation.reaches_target(inst.test_labels, cells)
+    assert final.true_return == pytest.approx(evaluation.true_return(inst.test_labels, cells))
     assert [(s.row, s.col) for s in mission["statuses"]] == cells
 
 
 def test_bag_holds_every_recorded_topic_and_analyze_bag_reads_it(mission: dict) -> None:
-    from ird_ros.bags.analysis import summarize
+    from ird_ros.bags.storage import summarize
 
     counts = {t.topic: t.count for t in summarize(mission["bag"])}
     steps = HORIZON + 1

@@ -9,16 +9,16 @@ from typing import Any
 
 import numpy as np
 import pytest
-import rclpy
 
 from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
-from ird_core.posterior.sampler import RunUntil
+from ird_core.posterior import RunUntil
 from ird_core.worlds import lavaland
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
+from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, call_service, spawn_node_process, wait_for_service
+from ird_ros.testing import DomainLease, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -60,13 +60,9 @@ def _infer(ros_ctx: Any, ros_domain: DomainLease, req: InferReward.Request, **pa
     for key, value in {**SAMPLER, **params}.items():
         args += ["-p", f"{key}:={value}"]
     with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as proc:
-        node = rclpy.create_node("infer_converged_client", context=ros_ctx)
-        try:
-            client = node.create_client(InferReward, names.SRV_INFER)
-            wait_for_service(node, client, processes=[proc], timeout=30.0)
-            return call_service(node, client, req, timeout=120.0, processes=[proc])
-        finally:
-            node.destroy_node()
+        with IrdClient(context=ros_ctx, node_name="infer_converged_client", processes=[proc]) as ird:
+            ird.wait_ready(30.0, services=(names.SRV_INFER,))
+            return ird.call(names.SRV_INFER, req, timeout=120.0).response  # the raw answer: every field is checked
 
 
 def _assert_same(response: InferReward.Response, expected: core_inference.Posterior) -> None:

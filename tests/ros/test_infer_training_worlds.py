@@ -9,18 +9,19 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
-import rclpy
 from _inference_node import SAMPLER, small_inference_node
 
 from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
+from ird_core.posterior import SamplerSettings
 from ird_core.worlds import lavaland, world_file
 from ird_msgs.msg import TrainingWorld
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
+from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.nodes.inference import ExtraWorld, InferenceJob, SamplerSettings, job_observations
-from ird_ros.testing import DomainLease, NodeProcess, call_service, wait_for_service
+from ird_ros.jobs.inference import ExtraWorld, InferenceJob, job_observations
+from ird_ros.testing import DomainLease, NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -33,11 +34,10 @@ def node(ros_domain: DomainLease) -> Iterator[NodeProcess]:
 
 @pytest.fixture(scope="module")
 def call(ros_ctx: Any, node: NodeProcess) -> Iterator[Callable[[InferReward.Request], InferReward.Response]]:
-    client_node = rclpy.create_node("training_worlds_client", context=ros_ctx)
-    client = client_node.create_client(InferReward, names.SRV_INFER)
-    wait_for_service(client_node, client, processes=[node], timeout=30.0)
-    yield lambda req: call_service(client_node, client, req, timeout=60.0, processes=[node])
-    client_node.destroy_node()
+    with IrdClient(context=ros_ctx, node_name="training_worlds_client", processes=[node]) as ird:
+        ird.wait_ready(30.0, services=(names.SRV_INFER,))
+        # The raw answer: the tests read every field of the message.
+        yield lambda req: ird.call(names.SRV_INFER, req, timeout=60.0).response
 
 
 def _world_msg(world: lavaland.TrainingWorld, names_: tuple[str, ...], proxy_names: tuple[str, ...] | None,
@@ -78,12 +78,12 @@ def test_two_file_worlds_give_the_joint_posterior(method: str, call: Callable) -
     inst = world_file.load_world(ROOT / "worlds" / "two_training_worlds.yaml")  # indicators: float32-exact
     response = call(_request(inst, method))
     assert response.success, response.message
-    expected = _joint(lavaland.proxy_observations(inst), method)
+    expected = _joint(core_inference.proxy_observations(inst), method)
     got = conv.posterior_from_msg(response.posterior)
     np.testing.assert_array_equal(got.samples, expected.samples)
     np.testing.assert_array_equal(got.proxy_weights, inst.proxy_weights)
     # The second world is evidence: without it the posterior differs.
-    single = _joint(lavaland.proxy_observations(inst)[:1], method)
+    single = _joint(core_inference.proxy_observations(inst)[:1], method)
     assert not np.array_equal(single.samples, expected.samples)
     # An empty world list keeps the single-proxy posterior.
     req = _request(inst, method)
@@ -110,9 +110,9 @@ def test_proxy_maps_of_several_worlds(method: str, call: Callable) -> None:
     job = InferenceJob(train, train.with_features(inst.proxy_train_features), inst.proxy_weights, 3.0, method, 10,
                        17, 1.0, SamplerSettings(**SAMPLER),
                        (ExtraWorld(sec, sec.with_features(second.proxy_features), second.proxy_weights),))
-    observations = job_observations(job, SAMPLER["num_proxy_samples"])
+    observations = job_observations(job)  # N = SamplerSettings(**SAMPLER).num_proxy_samples
     # The node's per-world proxy terms are lavaland's.
-    reference = lavaland.proxy_observations(inst, num_proxy_samples=SAMPLER["num_proxy_samples"], seed=17)
+    reference = core_inference.proxy_observations(inst, num_proxy_samples=SAMPLER["num_proxy_samples"], seed=17)
     for mine, theirs in zip(observations, reference, strict=True):
         np.testing.assert_allclose(mine.proxy_features, theirs.proxy_features, rtol=1e-10, atol=1e-10)
         if method == "sample_z":
@@ -157,4 +157,4 @@ def test_empty_world_proxy_weights_are_the_requests(call: Callable) -> None:
     response = call(req)
     assert response.success, response.message
     np.testing.assert_array_equal(conv.posterior_from_msg(response.posterior).samples,
-                                  _joint(lavaland.proxy_observations(inst), "maxent_z").samples)
+                                  _joint(core_inference.proxy_observations(inst), "maxent_z").samples)

@@ -1,4 +1,4 @@
-"""ird_ros.launch.launcher / scripts/launch_graph.py: start, readiness, death reports, respawn, stop.
+"""ird_ros.launch.GraphLauncher / scripts/launch_graph.py: start, readiness, death reports, respawn, stop.
 
 Every graph runs in a domain leased by the launcher itself (``private_domain``). The
 stand-in table (tests/ros/_standin_node.py: the real node table, each node replaced by a
@@ -19,16 +19,17 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from _standin_node import STANDIN_SPECS
 
-from ird_ros.bags import analysis as bag_reader
-from ird_ros.graph import domains, names
-from ird_ros.launch.launcher import GraphLauncher, LaunchError, graph_specs
+from ird_ros.bags import storage
+from ird_ros.graph import DEFAULT_NODES, domains, names
+from ird_ros.launch import GraphLauncher, LaunchError
 from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "scripts" / "launch_graph.py"
-ALL = [s.name for s in graph_specs()]
+ALL = list(DEFAULT_NODES)
 
 
 def _running(pid: int) -> bool:
@@ -98,7 +99,7 @@ def test_api_ready_death_report_respawn_and_stop(tmp_path: Path) -> None:
     assert graph.stop_duration is not None and graph.stop_duration < 5.0
     every_pid = set(first_pids.values()) | set(last_pids.values()) | {again.pid}
     assert not [p for p in every_pid if _running(p)]
-    topics = {t.topic: t.count for t in bag_reader.summarize(bag)}
+    topics = {t.topic: t.count for t in storage.summarize(bag)}
     assert topics[names.TOPIC_PROXY] == 1
     assert topics[names.TOPIC_PLAN] >= 1
 
@@ -129,6 +130,23 @@ def test_a_node_that_dies_at_start_fails_fast() -> None:
         assert time.monotonic() - t0 < 30
     assert "inference" in str(err.value) and "exited with code 1" in str(err.value)
     assert "No module named" in str(err.value)
+
+
+def test_a_node_that_keeps_dying_is_given_up_after_respawn_max_retries() -> None:
+    specs = [replace(s, module="ird_ros.no_such_module", script=None) if s.name == "inference" else s
+             for s in STANDIN_SPECS]
+    lines: list[str] = []
+    with GraphLauncher(specs=specs, nodes=["world", "inference"], private_domain=True, output="quiet",
+                       respawn=["inference"], respawn_delay=0.0, respawn_max_retries=2, echo=lines.append) as graph:
+        gave_up = graph.wait_for_event("gave_up", "inference", timeout=60)
+        with pytest.raises(LaunchError) as err:
+            graph.wait_ready(timeout=60)
+        starts = [e for e in graph.events() if e.node == "inference" and e.kind == "started"]
+        assert len(starts) == 3 and gave_up.index > starts[-1].index
+        assert graph.state("inference") == "exited"
+    assert "inference" in str(err.value) and "exited with code 1" in str(err.value)
+    assert any("node inference: gave up after 2 restart(s)" in line for line in lines)
+    assert sum("; respawning in 0 s" in line for line in lines) == 2
 
 
 def test_unknown_node_and_existing_record_dir_are_refused(tmp_path: Path) -> None:
@@ -180,7 +198,7 @@ def _cli_sigint_run(tmp_path: Path, extra: list[str], expected_nodes: list[str])
     assert stop_s < 6.0  # the children within 5 s, plus the launcher's own exit
     line = next(x for x in proc.output(last=2000).splitlines() if x.startswith("[launcher] stopped "))
     assert float(line.split(" in ")[1].split()[0]) < 5.0
-    topics = {t.topic: t.count for t in bag_reader.summarize(bag)}
+    topics = {t.topic: t.count for t in storage.summarize(bag)}
     assert topics.get(names.TOPIC_PROXY, 0) >= 1
     print(f"\n[timing] {extra[:2]} ready after {ready_s:.2f} s (launcher start to ready), SIGINT to exit {stop_s:.2f} s")
     return {"ready_s": ready_s, "stop_s": stop_s, "topics": topics}
@@ -211,13 +229,14 @@ def test_cli_sigkill_of_the_launcher_leaves_no_orphans(tmp_path: Path) -> None:
             if _running(pid):
                 os.killpg(pid, signal.SIGKILL)
     # the recorder closed its bag on that SIGTERM
-    assert bag_reader.summarize(bag)[0].topic.startswith("/")
+    assert storage.summarize(bag)[0].topic.startswith("/")
 
 
 def test_cli_sigterm_and_respawn_from_params_file(tmp_path: Path) -> None:
     params = tmp_path / "graph.yaml"
-    params.write_text((ROOT / "msgs_config" / "params" / "graph.yaml").read_text()
-                      + "\nlauncher:\n  ros__parameters:\n    respawn: [world]\n    respawn_delay: 0.1\n")
+    data = yaml.safe_load((ROOT / "msgs_config" / "params" / "graph.yaml").read_text())
+    data.setdefault("launcher", {}).setdefault("ros__parameters", {}).update(respawn=["world"], respawn_delay=0.1)
+    params.write_text(yaml.safe_dump(data))
     proc, pids = _start_cli(tmp_path, ["--node-table", "_standin_node:STANDIN_SPECS", "--nodes", "world,rob",
                                        "--params", str(params)])
     try:

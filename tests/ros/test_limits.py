@@ -9,16 +9,15 @@ from typing import Any, Iterator
 
 import numpy as np
 import pytest
-import rclpy
 
 from ird_core import planning
 from ird_core.mdp import GridMDP
 from ird_core.worlds import lavaland
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
+from ird_ros.client import CallResult, CallStatus, IrdClient, Plan, plan_request
 from ird_ros.graph import names
-from ird_ros.runtime.offload import service_qos
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -34,23 +33,16 @@ def planner(ros_domain: DomainLease) -> Iterator[NodeProcess]:
 
 
 @pytest.fixture(scope="module")
-def client(ros_ctx: Any, planner: NodeProcess) -> Iterator[tuple[Any, Any]]:
-    node = rclpy.create_node("limits_client", context=ros_ctx)
-    cli = node.create_client(PlanPath, names.SRV_PLAN, qos_profile=service_qos())
-    wait_for_service(node, cli, processes=[planner], timeout=30.0)
-    yield node, cli
-    node.destroy_node()
+def client(ros_ctx: Any, planner: NodeProcess) -> Iterator[IrdClient]:
+    with IrdClient(context=ros_ctx, node_name="limits_client", processes=[planner]) as ird:
+        ird.wait_ready(30.0, services=(names.SRV_PLAN,))
+        yield ird
 
 
 def _request(features: np.ndarray, layers: tuple[str, ...], start: tuple[int, int], horizon: int,
              weights: np.ndarray, mode: str, baseline: str = "none") -> PlanPath.Request:
-    req = PlanPath.Request()
-    req.map = conv.feature_grid_to_msg(features, layers)
-    req.start_row, req.start_col = start
-    req.horizon = horizon
-    req.mode, req.baseline = mode, baseline
-    req.weights = np.asarray(weights, dtype=np.float64).reshape(-1).tolist()
-    return req
+    grid = conv.feature_grid_to_msg(features, layers)
+    return plan_request(start, horizon, mode, baseline, weights=weights, grid=grid)
 
 
 @pytest.fixture(scope="module")
@@ -58,9 +50,8 @@ def small() -> lavaland.LavalandInstance:
     return lavaland.make_instance("side_effects", 3, size=5, horizon=6)
 
 
-def _call(client: tuple[Any, Any], planner: NodeProcess, req: PlanPath.Request) -> PlanPath.Response:
-    node, cli = client
-    return call_service(node, cli, req, timeout=60.0, processes=[planner])
+def _call(client: IrdClient, planner: NodeProcess, req: PlanPath.Request) -> CallResult[Plan]:
+    return client.plan(req, timeout=60.0)
 
 
 def test_plan_work_is_refused_before_it_starts(client: Any, planner: NodeProcess,
@@ -69,7 +60,7 @@ def test_plan_work_is_refused_before_it_starts(client: Any, planner: NodeProcess
     weights = np.random.default_rng(0).normal(size=(200_000, d))
     req = _request(small.test_features, small.feature_names, small.test_start, 1000, weights, "per_step")
     response = _call(client, planner, req)
-    assert not response.success
+    assert response.status is CallStatus.REFUSED and response.field == "weights", response
     assert response.message.startswith("weights: 200000 samples x horizon 1000"), response.message
     assert "max_plan_work=5e+07" in response.message
 
@@ -80,37 +71,37 @@ def test_out_of_range_weights_are_named(client: Any, planner: NodeProcess, small
                                         weights: list[float], mode: str) -> None:
     req = _request(small.test_features, small.feature_names, small.test_start, 6, np.array(weights), mode)
     response = _call(client, planner, req)
-    assert not response.success
+    assert response.status is CallStatus.REFUSED and response.field == "weights", response
     assert response.message.startswith("weights: a value of magnitude"), response.message
 
 
 def test_huge_map_values_are_named(client: Any, planner: NodeProcess, small: lavaland.LavalandInstance) -> None:
     req = _request(np.full((5, 5, 4), 1e30), small.feature_names, (0, 0), 6, np.ones(4), "literal")
     response = _call(client, planner, req)
-    assert not response.success and response.message.startswith("map.data: a value of magnitude 1e+30")
+    assert response.status is CallStatus.REFUSED and response.field == "map.data", response
+    assert response.message.startswith("map.data: a value of magnitude 1e+30"), response.message
 
 
-def test_long_trajectory_does_not_delay_a_per_step_plan(client: Any, planner: NodeProcess) -> None:
-    node, cli = client
+def test_long_trajectory_does_not_delay_a_per_step_plan(client: IrdClient, planner: NodeProcess) -> None:
     inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30, obs_dim=50)
     weights = np.random.default_rng(0).normal(size=(16, inst.test_features.shape[2]))
     # The reliability report's slow case (log_z: no proof within the time limit on the core).
     long_req = _request(inst.test_features, inst.feature_names, inst.test_start, 30, weights, "trajectory", "log_z")
     short_req = _request(inst.test_features, inst.feature_names, inst.test_start, 30, weights, "per_step", "log_z")
     order: list[str] = []
-    long_future = cli.call_async(long_req)
-    long_future.add_done_callback(lambda _: order.append("trajectory"))
-    short_future = cli.call_async(short_req)
-    short_future.add_done_callback(lambda _: order.append("per_step"))
-    spin_until(node, lambda: len(order) == 2, timeout=120.0, what="both plans", processes=[planner])
+    long_pending = client.plan_async(long_req)
+    long_pending.add_done_callback(lambda: order.append("trajectory"))
+    short_pending = client.plan_async(short_req)
+    short_pending.add_done_callback(lambda: order.append("per_step"))
+    client.spin_until(lambda: len(order) == 2, timeout=120.0, what="both plans")
     assert order == ["per_step", "trajectory"]
-    short, long = short_future.result(), long_future.result()
-    assert short.success, short.message
-    assert long.success, long.message
+    short, long = short_pending.result(), long_pending.result()
+    assert short.ok, short.message
+    assert long.ok, long.message
     mdp = GridMDP(inst.test_features.astype(np.float32).astype(np.float64), inst.test_start, 30)
-    cells = list(zip(long.rows, long.cols))
+    cells = list(long.unwrap().cells)
     # Whatever the solver reached, the objective reported is the path's exact objective.
-    assert long.objective == pytest.approx(planning.path_objective(mdp, cells, weights, "trajectory", "log_z"),
+    assert long.unwrap().objective == pytest.approx(planning.path_objective(mdp, cells, weights, "trajectory", "log_z"),
                                            rel=1e-9, abs=1e-9)
     if "FALLBACK" in long.message:
         assert f"time_limit: {TIME_LIMIT} s passed" in long.message
@@ -135,21 +126,16 @@ def test_worker_memory_limit_fails_the_job_not_the_pool() -> None:
 
 
 def test_empty_condition_keeps_the_current_one(ros_domain: DomainLease, ros_ctx: Any) -> None:
-    from ird_msgs.srv import GenerateWorld
-
     args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=reward_hacking",
             "-p", "height:=5", "-p", "width:=5", "-p", "horizon:=4"]
     with spawn_node_process(args, domain=ros_domain, name="world", ready_text="world ready") as world:
-        node = rclpy.create_node("limits_world_client", context=ros_ctx)
-        try:
-            cli = node.create_client(GenerateWorld, names.SRV_GENERATE, qos_profile=service_qos())
-            response = call_service(node, cli, GenerateWorld.Request(condition="", seed=5), processes=[world])
-        finally:
-            node.destroy_node()
-    assert response.success and response.message.startswith("generated reward_hacking seed 5"), response.message
+        with IrdClient(context=ros_ctx, node_name="limits_world_client", processes=[world]) as ird:
+            response = ird.generate_world("", 5, timeout=30.0)
+    assert response.ok and response.message.startswith("generated reward_hacking seed 5"), response.message
 
 
 def test_map_size_is_refused_by_name(client: Any, planner: NodeProcess) -> None:
     req = _request(np.zeros((1000, 1000, 6)), tuple(f"f{i}" for i in range(6)), (0, 0), 1, np.ones(6), "literal")
     response = _call(client, planner, req)
-    assert not response.success and response.message == "map.data: 6000000 values exceed max_map_values=5000000"
+    assert response.status is CallStatus.REFUSED and response.field == "map.data", response
+    assert response.message == "map.data: 6000000 values exceed max_map_values=5000000"

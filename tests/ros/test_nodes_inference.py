@@ -10,7 +10,6 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 import pytest
-import rclpy
 from _inference_node import SAMPLER, small_inference_node
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -22,8 +21,8 @@ from ird_core.worlds import lavaland
 from ird_msgs.msg import RewardPosterior
 from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
+from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.nodes.inference import proxy_map_terms
 from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
 
 SIZE, HORIZON = 5, 6
@@ -36,23 +35,24 @@ def inference(ros_domain: DomainLease) -> Iterator[NodeProcess]:
 
 
 class Client:
-    """A module-wide test node with an /ird/infer client (hypothesis needs a non-function fixture)."""
+    """A module-wide IrdClient of /ird/infer (hypothesis needs a non-function fixture)."""
 
     def __init__(self, ctx: Any, proc: NodeProcess) -> None:
-        self.node = rclpy.create_node("inference_test_client", context=ctx)
+        self.ird = IrdClient(context=ctx, node_name="inference_test_client", processes=[proc])
+        self.ird.wait_ready(30.0, services=(names.SRV_INFER,))
+        self.node = self.ird.node
         self.proc = proc
-        self.client = self.node.create_client(InferReward, names.SRV_INFER)
-        wait_for_service(self.node, self.client, processes=[proc], timeout=30.0)
 
     def call(self, request: InferReward.Request, timeout: float = 60.0) -> InferReward.Response:
-        return call_service(self.node, self.client, request, timeout=timeout, processes=[self.proc])
+        """The raw answer: these tests read every field of the message."""
+        return self.ird.call(names.SRV_INFER, request, timeout=timeout).response
 
 
 @pytest.fixture(scope="module")
 def client(ros_ctx: Any, inference: NodeProcess) -> Iterator[Client]:
     c = Client(ros_ctx, inference)
     yield c
-    c.node.destroy_node()
+    c.ird.close()
 
 
 def make_request(inst: lavaland.LavalandInstance, *, method: str = "maxent_z", num_samples: int = 12,
@@ -150,14 +150,17 @@ def test_proxy_map_latent_classifier(method: str, client: Client) -> None:
     response = client.call(req)
     assert response.success, response.message
     train, proxy = f64(inst.train_features), f64(inst.proxy_train_features)
-    phi, sample_phi = proxy_map_terms(train, proxy, inst.train_start, inst.train_horizon, inst.proxy_weights,
-                                      method, 1.0, 9, SAMPLER["num_proxy_samples"])
+    train_mdp = GridMDP(train, inst.train_start, inst.train_horizon)
+    observation = core_inference.proxy_observation(
+        train_mdp, inst.proxy_weights, proxy_mdp=train_mdp.with_features(proxy), seed=9, prior_sigma=1.0,
+        num_proxy_samples=SAMPLER["num_proxy_samples"] if method == "sample_z" else None)
+    phi, sample_phi = observation.proxy_features, observation.proxy_sample_features
     # The node's proxy terms are lavaland's (on the float32-rounded maps).
     rounded = lavaland.LavalandInstance(**{**{f: getattr(inst, f) for f in inst.__dataclass_fields__},
                                            "train_features": train, "proxy_train_features": proxy})
-    assert np.allclose(phi, lavaland.proxy_feature_expectations(rounded), rtol=1e-10, atol=1e-10)
+    assert np.allclose(phi, core_inference.proxy_feature_expectations(rounded), rtol=1e-10, atol=1e-10)
     if method == "sample_z":
-        assert np.allclose(sample_phi, lavaland.proxy_prior_features(rounded, SAMPLER["num_proxy_samples"], 9),
+        assert np.allclose(sample_phi, core_inference.proxy_prior_features(rounded, SAMPLER["num_proxy_samples"], 9),
                            rtol=1e-10, atol=1e-10)
     mdp = GridMDP(train, inst.train_start, inst.train_horizon)
     extra = {} if sample_phi is None else {"proxy_sample_features": sample_phi}
@@ -374,7 +377,7 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     describe = node.create_client(DescribeParameters, "/inference/describe_parameters")
     wait_for_service(node, describe, processes=[client.proc])
     started = time.monotonic()
-    long_future = client.client.call_async(long_req)
+    long_future = client.ird.call_async(names.SRV_INFER, long_req)
     # Let the request reach the node and the worker start on it.
     spin_until(node, lambda: time.monotonic() - started > 0.5 or long_future.done(), timeout=5.0,
                what="the long request to be under way")
@@ -401,7 +404,7 @@ def test_responsive_during_long_inference(client: Client, small: lavaland.Lavala
     for what, times in (("describe_parameters", latencies), ("bad /ird/infer", rejects)):
         assert np.median(times) < 0.1 and sum(t >= 0.1 for t in times) <= 2, (what, times)
     spin_until(node, long_future.done, timeout=180.0, what="the long inference", processes=[client.proc])
-    result = long_future.result()
+    result = long_future.result().response
     assert result.success, result.message
     assert result.posterior.num_samples == 2000
     print(f"long inference took {time.monotonic() - started:.1f} s")

@@ -17,11 +17,11 @@ from typing import Any, Iterator
 import pytest
 
 from ird_core.worlds import lavaland
-from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros import graph
+from ird_ros.client import IrdClient, infer_request
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, spin_until, wait_for_node, wait_for_service
+from ird_ros.testing import DomainLease, wait_for_node
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -111,26 +111,24 @@ def test_nodes_exit_0_on_signal_even_with_sigint_ignored(ros_domain: DomainLease
         assert _all_exit(workers[name]), (name, workers[name])
 
 
-def test_sigterm_during_a_long_inference(ros_domain: DomainLease, ros_node: Any, started: list[Background]) -> None:
+def test_sigterm_during_a_long_inference(ros_domain: DomainLease, ros_ctx: Any, started: list[Background]) -> None:
     bg = Background("ird_ros.nodes.inference", ros_domain)
     started.append(bg)
     assert bg.ready.wait(60.0), bg.output()
-    client = ros_node.create_client(InferReward, names.SRV_INFER)
-    wait_for_service(ros_node, client, timeout=30.0)
-    inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30)
-    req = InferReward.Request(start_row=inst.train_start[0], start_col=inst.train_start[1],
-                              horizon=inst.train_horizon, beta=1.0, method="maxent_z", num_samples=100000, seed=1)
-    req.training_map = conv.feature_grid_to_msg(inst.train_features, inst.feature_names)
-    req.proxy_weights = conv.weights_to_flat(inst.proxy_weights)
-    future = client.call_async(req)
-    t0 = time.monotonic()
-    spin_until(ros_node, lambda: time.monotonic() - t0 > 1.0, timeout=5.0, what="the inference to be under way")
-    workers = bg.children()
-    assert workers and not future.done()
-    t0 = time.monotonic()
-    bg.proc.send_signal(signal.SIGTERM)
-    assert bg.proc.wait(timeout=15.0) == 0, bg.output()
-    took = time.monotonic() - t0
-    assert took < 5.0, took
-    assert _all_exit(workers), workers
-    ros_node.destroy_client(client)
+    with IrdClient(context=ros_ctx, node_name="sigterm_client") as ird:
+        ird.wait_ready(30.0, services=(names.SRV_INFER,))
+        inst = lavaland.make_instance("latent_raw", 0, size=15, horizon=30)
+        req = infer_request(conv.feature_grid_to_msg(inst.train_features, inst.feature_names), inst.train_start,
+                            inst.train_horizon, inst.proxy_weights, beta=1.0, method="maxent_z", num_samples=100000,
+                            seed=1)
+        pending = ird.infer_async(req)
+        t0 = time.monotonic()
+        ird.spin_until(lambda: time.monotonic() - t0 > 1.0, timeout=5.0, what="the inference to be under way")
+        workers = bg.children()
+        assert workers and not pending.done()
+        t0 = time.monotonic()
+        bg.proc.send_signal(signal.SIGTERM)
+        assert bg.proc.wait(timeout=15.0) == 0, bg.output()
+        took = time.monotonic() - t0
+        assert took < 5.0, took
+        assert _all_exit(workers), workers

@@ -11,10 +11,10 @@ import pytest
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import Terrain
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
-from ird_msgs.srv import GenerateWorld
 from ird_ros import conversions as conv
+from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
+from ird_ros.testing import DomainLease, NodeProcess, spin_until
 from ird_ros.testing import running_nodes as running
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,26 +34,21 @@ def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
 
 
 class Probe:
-    """Module-wide latched subscriptions to the proxy and perception's outputs, and a
-    /world/generate client (created once: DDS discovery is paid once)."""
+    """A module-wide IrdClient with latched subscriptions to the proxy and perception's outputs
+    (created once: DDS discovery is paid once)."""
 
-    def __init__(self, node: Any, graph: list[NodeProcess]) -> None:
-        self.node, self.graph = node, graph
-        self.proxies: list[ProxyReward] = []
-        self.classes: list[TerrainGrid] = []
-        self.features: list[FeatureGrid] = []
-        qos = names.latched_qos()
-        node.create_subscription(ProxyReward, names.TOPIC_PROXY, self.proxies.append, qos)
-        node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, self.classes.append, qos)
-        node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, self.features.append, qos)
-        self.client = node.create_client(GenerateWorld, names.SRV_GENERATE)
-        wait_for_service(node, self.client, processes=graph)
+    def __init__(self, ird: IrdClient, graph: list[NodeProcess]) -> None:
+        self.ird, self.node, self.graph = ird, ird.node, graph
+        ird.subscribe(names.TOPIC_PROXY, names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TERRAIN_FEATURES)
+        self.proxies: list[ProxyReward] = ird.received(names.TOPIC_PROXY)
+        self.classes: list[TerrainGrid] = ird.received(names.TOPIC_TERRAIN_CLASSES)
+        self.features: list[FeatureGrid] = ird.received(names.TOPIC_TERRAIN_FEATURES)
+        ird.wait_ready(20.0, services=(names.SRV_GENERATE,))
 
     def perceive(self, condition: str, seed: int) -> tuple[TerrainGrid, FeatureGrid]:
         """Generate a world; return perception's (/terrain/classes, /terrain/features) of it."""
-        response = call_service(self.node, self.client, GenerateWorld.Request(condition=condition, seed=seed),
-                                processes=self.graph)
-        assert response.success, response.message
+        response = self.ird.generate_world(condition, seed, timeout=30.0)
+        assert response.ok, response.message
         found: list[Any] = []
 
         def arrived() -> bool:
@@ -72,11 +67,8 @@ class Probe:
 
 @pytest.fixture(scope="module")
 def probe(ros_ctx: Any, graph: list[NodeProcess]) -> Iterator[Probe]:
-    import rclpy
-
-    node = rclpy.create_node("perception_probe", context=ros_ctx)
-    yield Probe(node, graph)
-    node.destroy_node()
+    with IrdClient(context=ros_ctx, node_name="perception_probe", processes=graph) as ird:
+        yield Probe(ird, graph)
 
 
 @pytest.mark.parametrize("condition", lavaland.CONDITIONS)

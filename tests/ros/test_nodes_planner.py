@@ -15,18 +15,18 @@ from nav_msgs.msg import Path as PathMsg
 
 from ird_core import planning
 from ird_core.mdp import GridMDP
+from ird_core import posterior
 from ird_core.worlds import lavaland
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
-from ird_msgs.srv import GenerateWorld, PlanPath
+from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
+from ird_ros.client import CallStatus, IrdClient
 from ird_ros.graph import names
 from ird_ros.testing import (
     DomainLease,
     NodeProcess,
-    call_service,
     spawn_node_process,
     spin_until,
-    wait_for_service,
     wait_for_subscribers,
 )
 from ird_ros.testing import running_nodes as running
@@ -52,36 +52,43 @@ def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
 
 
 class Probe:
-    """Latched subscriptions to the planner's outputs, kept for the whole module."""
+    """The test's IrdClient, with latched subscriptions to the planner's outputs kept for the
+    whole module and a publisher of posteriors (the planner's input)."""
 
-    def __init__(self, node: Any) -> None:
-        qos = names.latched_qos()
-        self.node = node
-        self.plans: list[PathMsg] = []
-        self.infos: list[PlanInfo] = []
-        self.risk: list[OccupancyGrid] = []
-        self.proxies: list[ProxyReward] = []
-        self.terrain_features: list[FeatureGrid] = []
-        node.create_subscription(PathMsg, names.TOPIC_PLAN, self.plans.append, qos)
-        node.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self.infos.append, qos)
-        node.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self.risk.append, qos)
-        node.create_subscription(ProxyReward, names.TOPIC_PROXY, self.proxies.append, qos)
-        node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, self.terrain_features.append, qos)
-        self.plan_client = node.create_client(PlanPath, names.SRV_PLAN)
-        self.generate_client = node.create_client(GenerateWorld, names.SRV_GENERATE)
-        self.posterior_pub = node.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, qos)
+    def __init__(self, ctx: Any, graph: list[NodeProcess]) -> None:
+        self.ird = IrdClient(context=ctx, node_name="planner_probe", processes=graph)
+        self.node = self.ird.node
+        self.ird.subscribe(names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_RISK_MAP, names.TOPIC_PROXY,
+                           names.TOPIC_TERRAIN_FEATURES)
+        self.posterior_pub = self.node.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
+        self.ird.wait_ready(20.0, services=(names.SRV_PLAN, names.SRV_GENERATE))
+
+    @property
+    def plans(self) -> list[PathMsg]:
+        return self.ird.received(names.TOPIC_PLAN)
+
+    @property
+    def infos(self) -> list[PlanInfo]:
+        return self.ird.received(names.TOPIC_PLAN_INFO)
+
+    @property
+    def risk(self) -> list[OccupancyGrid]:
+        return self.ird.received(names.TOPIC_RISK_MAP)
+
+    @property
+    def proxies(self) -> list[ProxyReward]:
+        return self.ird.received(names.TOPIC_PROXY)
+
+    @property
+    def terrain_features(self) -> list[FeatureGrid]:
+        return self.ird.received(names.TOPIC_TERRAIN_FEATURES)
 
 
 @pytest.fixture(scope="module")
 def probe(ros_ctx: Any, graph: list[NodeProcess]) -> Iterator[Probe]:
-    import rclpy
-
-    node = rclpy.create_node("planner_probe", context=ros_ctx)
-    p = Probe(node)
-    wait_for_service(node, p.plan_client, processes=graph)
-    wait_for_service(node, p.generate_client, processes=graph)
+    p = Probe(ros_ctx, graph)
     yield p
-    node.destroy_node()
+    p.ird.close()
 
 
 def stamp_str(stamp: Any) -> str:
@@ -92,7 +99,7 @@ def plan(probe: Probe, graph: list[NodeProcess], **fields: Any) -> PlanPath.Resp
     req = PlanPath.Request()
     for key, value in fields.items():
         setattr(req, key, value)
-    return call_service(probe.node, probe.plan_client, req, processes=graph, timeout=60.0)
+    return probe.ird.call(names.SRV_PLAN, req, timeout=60.0).response  # the raw answer: every field is checked
 
 
 def plan_when(probe: Probe, graph: list[NodeProcess], ready: Callable[[str], bool], **fields: Any) -> PlanPath.Response:
@@ -111,9 +118,8 @@ def plan_when(probe: Probe, graph: list[NodeProcess], ready: Callable[[str], boo
 
 def generation(probe: Probe, graph: list[NodeProcess], condition: str, seed: int) -> tuple[ProxyReward, Any]:
     """Generate a world; wait for its proxy and perception's /terrain/features of it."""
-    response = call_service(probe.node, probe.generate_client, GenerateWorld.Request(condition=condition, seed=seed),
-                            processes=graph)
-    assert response.success, response.message
+    response = probe.ird.generate_world(condition, seed, timeout=30.0)
+    assert response.ok, response.message
 
     def arrived() -> bool:
         if not probe.proxies or (probe.proxies[-1].condition, probe.proxies[-1].seed) != (condition, seed):
@@ -199,7 +205,7 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     rounded = lavaland.LavalandInstance(**{**{f: getattr(inst, f) for f in inst.__dataclass_fields__},
                                            "train_features": f32(inst.train_features),
                                            "proxy_train_features": f32(inst.proxy_train_features)})
-    f_ref = lavaland.proxy_feature_expectations(rounded) / (T + 1)
+    f_ref = posterior.proxy_feature_expectations(rounded) / (T + 1)
     mdp = GridMDP(f32(inst.test_features), inst.test_start, T)
     expected = planning.plan_path(mdp, samples, "per_step", "training_features", f_ref)
     gen = stamp_str(stamp)
@@ -284,17 +290,13 @@ def test_bad_requests_are_named(case: str, change: dict[str, Any], field: str, p
 def test_plan_without_inputs_is_named() -> None:
     """A planner alone in its own domain (no world, no posterior) names what it lacks, and keeps
     serving."""
-    import rclpy
-
-    from ird_ros.testing import lease_domain, ros_context
+    from ird_ros.graph.domains import lease_domain
 
     args = ["-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS]
-    with lease_domain() as lease, ros_context(lease) as ctx, \
+    with lease_domain() as lease, \
             spawn_node_process(args, domain=lease, name="lonely_planner", ready_text="planner ready") as proc:
-        node = rclpy.create_node("lonely_probe", context=ctx)
-        try:
-            client = node.create_client(PlanPath, names.SRV_PLAN)
-            wait_for_service(node, client, processes=[proc])
+        with IrdClient(lease.domain_id, node_name="lonely_probe", processes=[proc]) as ird:
+            ird.wait_ready(20.0, services=(names.SRV_PLAN,))
             for mode, baseline, weights, field in (
                 ("per_step", "none", [], "weights"),
                 ("literal", "none", [], "weights"),
@@ -305,13 +307,11 @@ def test_plan_without_inputs_is_named() -> None:
                                        weights=weights)
                 if field == "reference_features":
                     req.map = conv.feature_grid_to_msg(np.zeros((2, 2, 3)), ["a", "b", "c"])
-                response = call_service(node, client, req, processes=[proc])
-                assert not response.success
+                response = ird.plan(req, timeout=20.0)
+                assert response.status is CallStatus.REFUSED and response.field == field, response
                 assert response.message.startswith(field + ":"), response.message
             req = PlanPath.Request(map=conv.feature_grid_to_msg(np.zeros((2, 2, 3)), ["a", "b", "c"]), horizon=3,
                                    mode="per_step", baseline="none", weights=[0.1, 0.2, 0.3])
-            assert call_service(node, client, req, processes=[proc]).success
-        finally:
-            node.destroy_node()
+            assert ird.plan(req, timeout=20.0).ok
         proc.stop()
         assert proc.returncode == 0, proc.describe()

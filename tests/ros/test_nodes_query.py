@@ -12,11 +12,10 @@ import pytest
 from _query_world import SAMPLER_ARGS, SIZE, Probe, node_args, world_args
 
 from ird_core.designer import queries as core_queries
-from ird_msgs.msg import RewardPosterior
-from ird_msgs.srv import AnswerQuery, GenerateWorld, ProposeQuery
+from ird_msgs.srv import ProposeQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
-from ird_ros.graph import names
+from ird_ros.client import CallStatus
 from ird_ros.testing import DomainLease, running_nodes
 
 ANSWER_BETA = 1.0  # the inference node's answer_beta (graph.yaml)
@@ -28,15 +27,11 @@ def probe(ros_domain: DomainLease, ros_ctx: Any) -> Iterator[Probe]:
                        ("inference", node_args("ird_ros.nodes.inference", SAMPLER_ARGS))) as procs:
         p = Probe(ros_ctx, procs)
         yield p
-        p.node.destroy_node()
+        p.close()
 
 
-def _samples(msg: RewardPosterior) -> np.ndarray:
+def _samples(msg: Any) -> np.ndarray:
     return conv.posterior_from_msg(msg).samples
-
-
-def _cells(path: Any) -> np.ndarray:
-    return np.array(conv.path_to_cells(path, height=SIZE, width=SIZE), dtype=np.int64)
 
 
 def _margin(samples: np.ndarray, features: np.ndarray, chosen: int) -> float:
@@ -45,23 +40,28 @@ def _margin(samples: np.ndarray, features: np.ndarray, chosen: int) -> float:
 
 
 def test_query_contract_and_answers(probe: Probe) -> None:
-    train, test, proxy = probe.world()
-    post0 = probe.infer(train, proxy).posterior
-    resp = probe.query(proxy, num_options=2, strategy="info_gain", seed=1)
-    assert resp.success, resp.message
+    world = probe.world()
+    proxy = world.proxy
+    post0 = probe.infer(world)
+    result = probe.query(proxy, num_options=2, strategy="info_gain", seed=1)
+    assert result.ok, result.message
+    resp = result.unwrap()
     q, d = len(resp.options), len(resp.feature_names)
-    assert q == 2 and tuple(resp.feature_names) == tuple(post0.feature_names)
-    features = np.asarray(resp.option_features, dtype=np.float64).reshape(q, d)
-    test_features = conv.feature_grid_from_msg(test).features.astype(np.float64)
+    assert q == 2 and resp.feature_names == post0.feature_names
+    features = resp.option_features
+    assert features.shape == (q, d)
+    test_features = conv.feature_grid_from_msg(world.test).features.astype(np.float64)
     start = np.array([proxy.test_start_row, proxy.test_start_col])
-    for k, path in enumerate(resp.options):
-        cells = _cells(path)
+    for k, cells in enumerate(resp.options):
+        # The same cells as the poses read back on the map's own bounds.
+        path = result.response.options[k]
+        assert np.array_equal(cells, np.array(conv.path_to_cells(path, height=SIZE, width=SIZE), dtype=np.int64))
         assert cells.shape == (proxy.test_horizon + 1, 2)  # horizon 0 = the proxy's test horizon
         assert np.array_equal(cells[0], start)
         assert np.all(np.abs(np.diff(cells, axis=0)).sum(axis=1) <= 1)  # stay or a 4-neighbour move
         assert np.allclose(features[k], test_features[cells[:, 0], cells[:, 1]].sum(axis=0))
     assert not np.array_equal(features[0], features[1])  # distinct options
-    gain = core_queries.information_gain(features, _samples(post0), ANSWER_BETA)
+    gain = core_queries.information_gain(features, post0.samples, ANSWER_BETA)
     assert resp.information_gain == pytest.approx(gain, rel=1e-9, abs=1e-12)
     assert resp.information_gain > 0.0
 
@@ -71,13 +71,13 @@ def test_query_contract_and_answers(probe: Probe) -> None:
     assert [r.event for r in proposed] == ["proposed"] and proposed[0].chosen == -1
 
     # Answer the option the posterior now favours less: the mean margin must grow towards it.
-    chosen = int(_margin(_samples(post0), features, 0) > 0)
-    before = _margin(_samples(post0), features, chosen)
+    chosen = int(_margin(post0.samples, features, 0) > 0)
+    before = _margin(post0.samples, features, chosen)
     answered = probe.answer(resp.query_id, chosen, beta=5.0)
-    assert answered.success, answered.message
-    after = _margin(_samples(answered.posterior), features, chosen)
+    assert answered.ok, answered.message
+    after = _margin(answered.unwrap().samples, features, chosen)
     assert after > before, (before, after)
-    probe.spin_until(lambda: np.array_equal(_samples(probe.posteriors[-1]), _samples(answered.posterior)),
+    probe.spin_until(lambda: np.array_equal(_samples(probe.posteriors[-1]), answered.unwrap().samples),
                      "the re-sampled posterior on /ird/posterior")
     probe.spin_until(lambda: any(r.query_id == resp.query_id and r.event == "answered" for r in probe.records),
                      "the answer record")
@@ -86,8 +86,9 @@ def test_query_contract_and_answers(probe: Probe) -> None:
 
     # Bad answers fail naming the field and change nothing.
     n_records, n_posteriors = len(probe.records), len(probe.posteriors)
-    open_resp = probe.query(proxy, num_options=2, strategy="random", seed=2)
-    assert open_resp.success, open_resp.message
+    open_result = probe.query(proxy, num_options=2, strategy="random", seed=2)
+    assert open_result.ok, open_result.message
+    open_resp = open_result.unwrap()
     for query_id, chosen_, beta, field, text in (
             (resp.query_id, 0, 0.0, "query_id", "already answered"),
             (open_resp.query_id + 100, 0, 0.0, "query_id", "unknown"),
@@ -95,10 +96,11 @@ def test_query_contract_and_answers(probe: Probe) -> None:
             (open_resp.query_id, 0, -1.0, "beta", ">= 0"),
             (open_resp.query_id, 0, float("nan"), "beta", ">= 0")):
         bad = probe.answer(query_id, chosen_, beta)
-        assert not bad.success and bad.message.startswith(f"{field}:") and text in bad.message, bad.message
+        assert bad.status is CallStatus.REFUSED and bad.field == field, bad
+        assert not bad.response.success and bad.message.startswith(f"{field}:") and text in bad.message, bad.message
     probe.spin_until(lambda: len(probe.records) >= n_records + 1, "the second proposal record")
     good = probe.answer(open_resp.query_id, 1)
-    assert good.success, good.message
+    assert good.ok, good.message
     probe.spin_until(lambda: len(probe.records) >= n_records + 2, "the second answer record")
     events = [qr.event_from_msg(r) for r in probe.records[n_records:]]
     assert [(e.query_id, e.event) for e in events] == [(open_resp.query_id, "proposed"),
@@ -109,22 +111,22 @@ def test_query_contract_and_answers(probe: Probe) -> None:
 
 
 def test_answer_during_resampling_is_refused_as_busy_never_lost(probe: Probe) -> None:
-    train, _, proxy = probe.world()
-    probe.infer(train, proxy, seed=11)
+    world = probe.world()
+    proxy = world.proxy
+    probe.infer(world, seed=11)
     ids = []
     for seed in (3, 4):
         resp = probe.query(proxy, num_options=2, strategy="random", seed=seed)
-        assert resp.success, resp.message
-        ids.append(resp.query_id)
-    client = probe.clients[names.SRV_ANSWER]
-    futures = [client.call_async(AnswerQuery.Request(query_id=i, chosen=0, answered_by="client")) for i in ids]
-    probe.spin_until(lambda: all(f.done() for f in futures), "both answers", timeout=120.0)
-    first, second = (f.result() for f in futures)
-    assert first.success, first.message
-    if not second.success:  # refused while the first was re-sampled: nothing changed, answer again
-        assert second.message.startswith("busy"), second.message
+        assert resp.ok, resp.message
+        ids.append(resp.unwrap().query_id)
+    pending = [probe.ird.answer_async(i, 0, answered_by="client") for i in ids]
+    probe.spin_until(lambda: all(p.done() for p in pending), "both answers", timeout=120.0)
+    first, second = (p.result() for p in pending)
+    assert first.ok, first.message
+    if not second.ok:  # refused while the first was re-sampled: nothing changed, answer again
+        assert second.status is CallStatus.BUSY and second.message.startswith("busy"), second.message
         second = probe.answer(ids[1], 0)
-        assert second.success, second.message
+        assert second.ok, second.message
     probe.spin_until(lambda: len([r for r in probe.records if r.event == "answered" and r.query_id in ids]) == 2,
                      "both answer records")
     answers = [r for r in probe.records if r.event == "answered" and r.query_id in ids]
@@ -132,37 +134,42 @@ def test_answer_during_resampling_is_refused_as_busy_never_lost(probe: Probe) ->
 
 
 def test_bad_queries_name_the_field(probe: Probe) -> None:
-    _, _, proxy = probe.world()
+    proxy = probe.world().proxy
     for kw, field in ((dict(num_options=1), "num_options"), (dict(num_options=9), "num_options"),
                       (dict(strategy="best"), "strategy")):
         resp = probe.query(proxy, **kw)
-        assert not resp.success and resp.message.startswith(f"{field}:"), resp.message
-    resp = probe.call(names.SRV_QUERY, ProposeQuery.Request(start_row=SIZE, start_col=0))
-    assert not resp.success and resp.message.startswith("start"), resp.message
+        assert resp.status is CallStatus.REFUSED and resp.field == field, resp
+        assert not resp.response.success and resp.message.startswith(f"{field}:"), resp.message
+    resp = probe.ird.propose_query(ProposeQuery.Request(start_row=SIZE, start_col=0))
+    assert resp.status is CallStatus.REFUSED and resp.message.startswith("start"), resp.message
     wrong = conv.feature_grid_to_msg(np.zeros((SIZE, SIZE, 2), np.float32), ("a", "b"))
-    resp = probe.call(names.SRV_QUERY, ProposeQuery.Request(map=wrong, start_row=0, start_col=0, horizon=3))
-    assert not resp.success and resp.message.startswith("map.layers:"), resp.message
+    resp = probe.ird.propose_query(ProposeQuery.Request(map=wrong, start_row=0, start_col=0, horizon=3))
+    assert resp.status is CallStatus.REFUSED and resp.field == "map.layers", resp
+    assert not resp.response.success and resp.message.startswith("map.layers:"), resp.message
 
 
 def test_a_new_world_forgets_the_evidence(probe: Probe) -> None:
-    train, _, proxy = probe.world()
-    probe.infer(train, proxy, seed=21)
-    old = probe.query(proxy, num_options=2, strategy="random", seed=5)
-    assert old.success, old.message
-    generated = probe.call(names.SRV_GENERATE, GenerateWorld.Request(condition="side_effects", seed=4))
-    assert generated.success, generated.message
-    train2, _, proxy2 = probe.world(stamp_after=proxy.header.stamp)
+    world = probe.world()
+    probe.infer(world, seed=21)
+    old_result = probe.query(world.proxy, num_options=2, strategy="random", seed=5)
+    assert old_result.ok, old_result.message
+    old = old_result.unwrap()
+    generated = probe.ird.generate_world("side_effects", 4, timeout=120.0)
+    assert generated.ok, generated.message
+    world2 = probe.world(other_than=world)
+    proxy2 = world2.proxy
 
     def forgotten() -> bool:  # the inference node got the new world's proxy
         return probe.query(proxy2).message.startswith("evidence:")
     probe.spin_until(forgotten, "the inference node to forget the old world", timeout=60.0)
     stale = probe.answer(old.query_id, 0)
-    assert not stale.success and stale.message.startswith("query_id:") and "forgotten" in stale.message
-    probe.infer(train2, proxy2, seed=22)
-    fresh = probe.query(proxy2, num_options=2, strategy="random", seed=6)
-    assert fresh.success, fresh.message
+    assert not stale.ok and stale.message.startswith("query_id:") and "forgotten" in stale.message
+    probe.infer(world2, seed=22)
+    fresh_result = probe.query(proxy2, num_options=2, strategy="random", seed=6)
+    assert fresh_result.ok, fresh_result.message
+    fresh = fresh_result.unwrap()
     answered = probe.answer(fresh.query_id, 1)
-    assert answered.success, answered.message
+    assert answered.ok, answered.message
     probe.spin_until(lambda: any(r.query_id == fresh.query_id and r.event == "answered" for r in probe.records),
                      "the answer record")
     record = [r for r in probe.records if r.query_id == fresh.query_id and r.event == "answered"][0]

@@ -10,7 +10,7 @@ import pytest
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMsg
 
-from ird_core.worlds import lavaland
+from ird_core.worlds import evaluation, lavaland
 from ird_core.worlds.terrain import Terrain
 from ird_msgs.msg import PlanInfo, RobStatus
 from ird_ros import conversions as conv
@@ -117,9 +117,9 @@ def test_executes_plan_and_evaluates_it(goals: list[int], info_first: bool, prob
     assert [s.done for s in statuses] == [False] * (len(cells) - 1) + [True]
     final = statuses[-1]
     assert final.horizon == len(cells) - 1
-    assert final.touched_lava == lavaland.touches_lava(labels, cells)
-    assert final.reached_target == lavaland.reaches_target(labels, cells)
-    assert final.true_return == pytest.approx(lavaland.true_return(labels, cells), abs=1e-12)
+    assert final.touched_lava == evaluation.touches_lava(labels, cells)
+    assert final.reached_target == evaluation.reaches_target(labels, cells)
+    assert final.true_return == pytest.approx(evaluation.true_return(labels, cells), abs=1e-12)
     assert final.terrain == ("dirt", "grass", "target", "lava")[labels[cells[-1]]]
     assert final.plan_label == f"walk_{len(goals)}"
     if goals[0] == Terrain.LAVA:

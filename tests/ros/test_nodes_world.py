@@ -11,20 +11,12 @@ import yaml
 
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.terrain import TERRAIN_NAMES
-from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
-from ird_msgs.srv import GenerateWorld
+from ird_msgs.msg import ProxyReward
 from ird_ros import conversions as conv
+from ird_ros.client import CallResult, CallStatus, IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import (
-    DomainLease,
-    NodeProcess,
-    call_service,
-    lease_domain,
-    ros_context,
-    spawn_node_process,
-    spin_until,
-    wait_for_service,
-)
+from ird_ros.graph.domains import lease_domain
+from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
@@ -45,24 +37,20 @@ def world(ros_domain: DomainLease) -> Iterator[NodeProcess]:
 
 
 class Probe:
-    """Latched subscriptions to every world topic and a /world/generate client, module-wide
-    (creating them per test would pay DDS discovery every time)."""
+    """An IrdClient with latched subscriptions to every world topic, module-wide (creating them
+    per test would pay DDS discovery every time)."""
 
-    TOPICS = ((names.TOPIC_PROXY, ProxyReward), (names.TOPIC_TRAIN_FEATURES, FeatureGrid),
-              (names.TOPIC_TEST_FEATURES, FeatureGrid), (names.TOPIC_TRAIN_PROXY_FEATURES, FeatureGrid),
-              (names.TOPIC_TERRAIN, TerrainGrid))
+    TOPICS = (names.TOPIC_PROXY, names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES,
+              names.TOPIC_TRAIN_PROXY_FEATURES, names.TOPIC_TERRAIN)
 
-    def __init__(self, node: Any, world: NodeProcess) -> None:
-        self.node, self.world = node, world
-        self.received: dict[str, list[Any]] = {topic: [] for topic, _ in self.TOPICS}
-        for topic, msg_type in self.TOPICS:
-            node.create_subscription(msg_type, topic, self.received[topic].append, names.latched_qos())
-        self.client = node.create_client(GenerateWorld, names.SRV_GENERATE)
-        wait_for_service(node, self.client, processes=[world])
+    def __init__(self, ird: IrdClient, world: NodeProcess) -> None:
+        self.ird, self.node, self.world = ird, ird.node, world
+        ird.subscribe(*self.TOPICS)
+        self.received: dict[str, list[Any]] = {topic: ird.received(topic) for topic in self.TOPICS}
+        ird.wait_ready(20.0, services=(names.SRV_GENERATE,))
 
-    def generate(self, condition: str, seed: int) -> GenerateWorld.Response:
-        return call_service(self.node, self.client, GenerateWorld.Request(condition=condition, seed=seed),
-                            processes=[self.world])
+    def generate(self, condition: str, seed: int) -> CallResult[str]:
+        return self.ird.generate_world(condition, seed, timeout=30.0)
 
     def latest_proxy(self) -> ProxyReward:
         spin_until(self.node, lambda: bool(self.received[names.TOPIC_PROXY]), timeout=20.0, what="/world/proxy",
@@ -99,18 +87,15 @@ class Probe:
 
 @pytest.fixture(scope="module")
 def probe(ros_ctx: Any, world: NodeProcess) -> Iterator[Probe]:
-    import rclpy
-
-    node = rclpy.create_node("world_probe", context=ros_ctx)
-    yield Probe(node, world)
-    node.destroy_node()
+    with IrdClient(context=ros_ctx, node_name="world_probe", processes=[world]) as ird:
+        yield Probe(ird, world)
 
 
 @pytest.mark.parametrize("condition", lavaland.CONDITIONS)
 def test_every_topic_for_every_condition(condition: str, probe: Probe) -> None:
     seed = 11
     response = probe.generate(condition, seed)
-    assert response.success, response.message
+    assert response.ok, response.message
     msgs = probe.messages(condition, seed)
     inst = lavaland.make_instance(condition, seed, size=(H, W), horizon=T, obs_dim=OBS)
 
@@ -148,10 +133,10 @@ def test_every_topic_for_every_condition(condition: str, probe: Probe) -> None:
 def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
     ros_node = probe.node
     first = probe.generate("latent_raw", 1)
-    assert first.success, first.message
+    assert first.ok, first.message
     a = probe.messages("latent_raw", 1)
     second = probe.generate("", 2)  # empty condition: keep latent_raw
-    assert second.success, second.message
+    assert second.ok, second.message
     b = probe.messages("latent_raw", 2)
     for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES):
         fa, fb = (conv.feature_grid_from_msg(m[topic]).features for m in (a, b))
@@ -169,11 +154,12 @@ def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
 
 def test_bad_condition_is_rejected(probe: Probe, ros_node: Any, world: NodeProcess) -> None:
     ok = probe.generate("reward_hacking", 5)
-    assert ok.success, ok.message
+    assert ok.ok, ok.message
     before = probe.messages("reward_hacking", 5)[names.TOPIC_PROXY]
     for bad in ("lava_land", "SIDE_EFFECTS", " side_effects", "x" * 300):
         response = probe.generate(bad, 6)
-        assert not response.success, bad
+        assert not response.ok, bad
+        assert response.status is CallStatus.REFUSED and response.field == "condition", response
         assert response.message.startswith("condition:"), response.message
     # Nothing was republished: a fresh subscriber gets the previous generation's latched proxy.
     fresh: list[ProxyReward] = []
@@ -182,7 +168,7 @@ def test_bad_condition_is_rejected(probe: Probe, ros_node: Any, world: NodeProce
     ros_node.destroy_subscription(sub)
     assert (fresh[-1].condition, fresh[-1].seed, fresh[-1].header.stamp) == ("reward_hacking", 5, before.header.stamp)
     # ... and the node keeps serving.
-    assert probe.generate("side_effects", 7).success
+    assert probe.generate("side_effects", 7).ok
 
 
 def test_bad_startup_parameter_exits_2(ros_domain: DomainLease) -> None:
@@ -215,50 +201,41 @@ def test_world_file_is_published_with_every_training_world() -> None:
     """two_training_worlds.yaml: the file's maps and geometry; /world/infer_request carries the
     second training world; /world/generate replaces the file world and "file" brings it back.
     A domain of its own: the module's world node publishes the same topics."""
-    import rclpy
-
-    from ird_msgs.srv import InferReward
-    from ird_ros.nodes.world import TOPIC_INFER_REQUEST
-
     wf = world_file.load_world_file(ROOT / "worlds" / "two_training_worlds.yaml")
     inst = wf.instance
     args = world_args() + ["-p", f"world_file:={wf.path}"]
-    with lease_domain() as lease, ros_context(lease) as ctx, \
-            spawn_node_process(args, domain=lease, name="file_world", ready_text="world ready") as proc:
-        node = rclpy.create_node("file_world_probe", context=ctx)
-        try:
-            probe = Probe(node, proc)
-            requests: list[Any] = []
-            node.create_subscription(InferReward.Request, TOPIC_INFER_REQUEST, requests.append, names.latched_qos())
-            msgs = probe.messages(lavaland.FILE_CONDITION, inst.seed)
-            spin_until(node, lambda: bool(requests), timeout=20.0, what=TOPIC_INFER_REQUEST, processes=[proc])
-            train = conv.feature_grid_from_msg(msgs[names.TOPIC_TRAIN_FEATURES])
-            assert np.array_equal(train.features, inst.train_features.astype(np.float32))
-            assert train.resolution == wf.resolution and train.origin == wf.origin[:2]
-            terrain = conv.terrain_grid_from_msg(msgs[names.TOPIC_TERRAIN])
-            assert terrain.class_names == inst.terrain_names
-            assert np.array_equal(terrain.classes, inst.test_labels.astype(np.uint8))
-            req = requests[-1]
-            assert req.training_map.header.stamp == msgs[names.TOPIC_PROXY].header.stamp
-            (extra,) = inst.extra_training_worlds
-            (sent,) = req.training_worlds
-            assert np.array_equal(conv.feature_grid_from_msg(sent.training_map).features,
-                                  extra.features.astype(np.float32))
-            assert (sent.start_row, sent.start_col, sent.horizon) == (*extra.start, extra.horizon)
-            assert np.array_equal(np.asarray(sent.proxy_weights), extra.proxy_weights)
-            assert not sent.proxy_map.layers  # the proxy is on the hypothesis features
+    with lease_domain() as lease, \
+            spawn_node_process(args, domain=lease, name="file_world", ready_text="world ready") as proc, \
+            IrdClient(lease.domain_id, node_name="file_world_probe", processes=[proc]) as ird:
+        probe = Probe(ird, proc)
+        requests = ird.received(names.TOPIC_INFER_REQUEST)
+        msgs = probe.messages(lavaland.FILE_CONDITION, inst.seed)
+        ird.world_infer_request(timeout=20.0)
+        train = conv.feature_grid_from_msg(msgs[names.TOPIC_TRAIN_FEATURES])
+        assert np.array_equal(train.features, inst.train_features.astype(np.float32))
+        assert train.resolution == wf.resolution and train.origin == wf.origin[:2]
+        terrain = conv.terrain_grid_from_msg(msgs[names.TOPIC_TERRAIN])
+        assert terrain.class_names == inst.terrain_names
+        assert np.array_equal(terrain.classes, inst.test_labels.astype(np.uint8))
+        req = requests[-1]
+        assert req.training_map.header.stamp == msgs[names.TOPIC_PROXY].header.stamp
+        (extra,) = inst.extra_training_worlds
+        (sent,) = req.training_worlds
+        assert np.array_equal(conv.feature_grid_from_msg(sent.training_map).features,
+                              extra.features.astype(np.float32))
+        assert (sent.start_row, sent.start_col, sent.horizon) == (*extra.start, extra.horizon)
+        assert np.array_equal(np.asarray(sent.proxy_weights), extra.proxy_weights)
+        assert not sent.proxy_map.layers  # the proxy is on the hypothesis features
 
-            assert probe.generate("side_effects", 4).success
-            assert probe.messages("side_effects", 4)[names.TOPIC_TERRAIN].class_names == list(TERRAIN_NAMES)
-            mark = probe.mark()
-            again = probe.generate(lavaland.FILE_CONDITION, 0)
-            assert again.success, again.message
-            back = probe.messages(lavaland.FILE_CONDITION, inst.seed, since=mark)
-            assert back[names.TOPIC_PROXY].header.stamp != msgs[names.TOPIC_PROXY].header.stamp
-        finally:
-            node.destroy_node()
+        assert probe.generate("side_effects", 4).ok
+        assert probe.messages("side_effects", 4)[names.TOPIC_TERRAIN].class_names == list(TERRAIN_NAMES)
+        mark = probe.mark()
+        again = probe.generate(lavaland.FILE_CONDITION, 0)
+        assert again.ok, again.message
+        back = probe.messages(lavaland.FILE_CONDITION, inst.seed, since=mark)
+        assert back[names.TOPIC_PROXY].header.stamp != msgs[names.TOPIC_PROXY].header.stamp
 
 
 def test_generate_file_without_a_world_file_is_rejected(probe: Probe) -> None:
     response = probe.generate(lavaland.FILE_CONDITION, 0)
-    assert not response.success and response.message.startswith("condition:"), response.message
+    assert response.status is CallStatus.REFUSED and response.message.startswith("condition:"), response.message

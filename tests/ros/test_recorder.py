@@ -23,7 +23,7 @@ import pytest
 from rclpy.duration import Duration
 
 from ird_ros import conversions as conv
-from ird_ros.bags import analysis as bag_reader
+from ird_ros.bags import missions, storage
 from ird_ros.graph import names
 from ird_ros.testing import DomainLease, spawn_node_process, wait_for_subscribers
 
@@ -107,7 +107,7 @@ def test_bag_holds_exactly_what_was_published(sig: int, ros_node: Any, ros_domai
     assert exp["ignored_subscribers"] == 0
 
     assert (out / "metadata.yaml").is_file()
-    summary = {t.topic: t for t in bag_reader.summarize(out)}
+    summary = {t.topic: t for t in storage.summarize(out)}
     assert {t: s.count for t, s in summary.items()} == {
         names.TOPIC_TERRAIN: 1, names.TOPIC_TEST_FEATURES: N_MAPS, names.TOPIC_ROB_STATUS: N_STATUS, names.TOPIC_ODOM: N_ODOM,
     }
@@ -117,8 +117,8 @@ def test_bag_holds_exactly_what_was_published(sig: int, ros_node: Any, ros_domai
     # the log says how many messages each topic got
     assert f"{names.TOPIC_ROB_STATUS}" in proc.output() and str(N_STATUS) in proc.output()
 
-    msgs = bag_reader.read_messages(out)  # types from the repository's .msg files
-    terrain = bag_reader.terrain_from_msg(msgs[names.TOPIC_TERRAIN][0].msg)
+    msgs = storage.read_messages(out)  # types from the repository's .msg files
+    terrain = missions.terrain_from_msg(msgs[names.TOPIC_TERRAIN][0].msg)
     np.testing.assert_array_equal(terrain.classes.ravel(), np.asarray(exp["terrain"].classes))
     assert terrain.resolution == 0.5 and terrain.origin == (1.0, -2.0)
     for got, arr in zip(msgs[names.TOPIC_TEST_FEATURES], exp["maps"]):
@@ -128,7 +128,7 @@ def test_bag_holds_exactly_what_was_published(sig: int, ros_node: Any, ros_domai
         assert (m.row, m.col, m.step, m.done, m.touched_lava, m.reached_target, m.plan_label) == (
             sent.row, sent.col, sent.step, sent.done, sent.touched_lava, sent.reached_target, sent.plan_label)
         assert m.true_return == sent.true_return
-    xs = [bag_reader.odom_xy(o.msg) for o in msgs[names.TOPIC_ODOM]]
+    xs = [missions.odom_xy(o.msg) for o in msgs[names.TOPIC_ODOM]]
     assert xs == [(0.25 * i, -0.5 * i) for i in range(N_ODOM)]
     times = [m.timestamp for m in msgs[names.TOPIC_ROB_STATUS]]
     assert times == sorted(times)
@@ -176,4 +176,4 @@ def test_stamp_placeholder_makes_a_fresh_folder(ros_node: Any, ros_domain: Domai
     proc.stop()
     (bag,) = (tmp_path / "runs").iterdir()
     assert bag.name.startswith("bag_2") and (bag / "metadata.yaml").is_file()
-    assert bag_reader.summarize(bag) == []
+    assert storage.summarize(bag) == []

@@ -16,7 +16,8 @@ import yaml
 
 from ird_core import planning
 from ird_core.mdp import GridMDP
-from ird_core.worlds import lavaland, world_file
+from ird_core import posterior
+from ird_core.worlds import evaluation, lavaland, world_file
 from ird_core.worlds.terrain import Terrain
 
 REPO = Path(__file__).resolve().parents[2]
@@ -25,17 +26,12 @@ WORLD = REPO / "worlds" / "figure1.yaml"
 
 @pytest.fixture(scope="module")
 def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    import rclpy
     from _mission import drive_ird_plan
-    from nav_msgs.msg import OccupancyGrid
 
-    from ird_msgs.msg import FeatureGrid, ProxyReward, RobStatus, TerrainGrid
-    from ird_msgs.srv import InferReward
-    from ird_ros import conversions as conv
-    from ird_ros.graph import names
-    from ird_ros.launch.launcher import GraphLauncher, graph_specs
-    from ird_ros.nodes.world import TOPIC_INFER_REQUEST, with_world_file
-    from ird_ros.testing import call_service, receive_messages, ros_context, wait_for_publishers
+    from ird_ros.client import IrdClient
+    from ird_ros.graph import NODES, names
+    from ird_ros.launch import GraphLauncher
+    from ird_ros.nodes.world import with_world_file
 
     tmp = tmp_path_factory.mktemp("world_file")
     params = yaml.safe_load((REPO / "msgs_config/params/graph.yaml").read_text())
@@ -43,37 +39,30 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> dict:
     params_file = tmp / "graph.yaml"
     params_file.write_text(yaml.safe_dump(params))
     out: dict = {"wf": world_file.load_world_file(WORLD)}
-    specs = with_world_file(graph_specs(optional=True), WORLD)
+    specs = with_world_file(NODES, WORLD)
     with GraphLauncher(specs=specs, params=params_file, private_domain=True, output="quiet",
                        log_dir=tmp / "logs") as graph:
         graph.wait_ready(timeout=120)
-        with ros_context(graph.domain_id) as ctx:
-            node = rclpy.create_node("world_file_client", context=ctx)
-            try:
-                status: list = []
-                sub = node.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, status.append, 100)
-                wait_for_publishers(node, sub, timeout=60)
-                proxy = receive_messages(node, ProxyReward, names.TOPIC_PROXY, timeout=60)[-1]
-                out["proxy"] = proxy
-                out["train"] = receive_messages(node, FeatureGrid, names.TOPIC_TRAIN_FEATURES, timeout=60)[-1]
-                out["test"] = receive_messages(node, FeatureGrid, names.TOPIC_TEST_FEATURES, timeout=60)[-1]
-                out["terrain"] = receive_messages(node, TerrainGrid, names.TOPIC_TERRAIN, timeout=60)[-1]
-                out["classes"] = receive_messages(node, TerrainGrid, names.TOPIC_TERRAIN_CLASSES, timeout=60)[-1]
-                req = receive_messages(node, InferReward.Request, TOPIC_INFER_REQUEST, timeout=60)[-1]
-                out["request"] = req
-                req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 40, 11
-                res = call_service(node, node.create_client(InferReward, names.SRV_INFER), req, timeout=300)
-                assert res.success, res.message
-                out["posterior"] = conv.posterior_from_msg(res.posterior)
-                # The planner holds the posterior and the test map once its risk map is out.
-                receive_messages(node, OccupancyGrid, names.TOPIC_RISK_MAP, timeout=60)
+        with IrdClient(graph.domain_id, node_name="world_file_client") as ird:
+            ird.watch_rob(timeout=60)
+            proxy = ird.proxy(timeout=60)
+            out["proxy"] = proxy
+            for key, topic in (("train", names.TOPIC_TRAIN_FEATURES), ("test", names.TOPIC_TEST_FEATURES),
+                               ("terrain", names.TOPIC_TERRAIN), ("classes", names.TOPIC_TERRAIN_CLASSES)):
+                out[key] = ird.latest(topic, timeout=60)
+            req = ird.world_infer_request(timeout=60)
+            out["request"] = req
+            req.beta, req.method, req.num_samples, req.seed = 5.0, "maxent_z", 40, 11
+            result = ird.infer(req, timeout=300)
+            assert result.ok, result.message
+            out["posterior"] = result.unwrap()
+            # The planner holds the posterior and the test map once its risk map is out.
+            ird.risk_map(timeout=60)
 
-                inst = out["wf"].instance
-                reference = lavaland.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
-                out.update(drive_ird_plan(node, proxy, res.posterior.samples, reference, status))
-                out["reference"] = reference
-            finally:
-                node.destroy_node()
+            inst = out["wf"].instance
+            reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+            out.update(drive_ird_plan(ird, proxy, out["posterior"].samples, reference))
+            out["reference"] = reference
     return out
 
 
@@ -119,9 +108,9 @@ def test_rob_drives_the_ird_plan_and_avoids_the_lava(mission: dict) -> None:
     assert [(s.row, s.col) for s in mission["statuses"]] == cells
     final = mission["final"]
     assert final.step == inst.test_horizon and (final.row, final.col) == cells[-1]
-    assert not lavaland.touches_lava(inst.test_labels, cells)
+    assert not evaluation.touches_lava(inst.test_labels, cells)
     assert not final.touched_lava
-    assert final.true_return == pytest.approx(lavaland.true_return(inst.test_labels, cells, inst.true_terrain_reward))
+    assert final.true_return == pytest.approx(evaluation.true_return(inst.test_labels, cells, inst.true_terrain_reward))
 
 
 @pytest.mark.parametrize("condition", ["latent_classifier", "latent_raw"])

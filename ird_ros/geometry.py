@@ -8,8 +8,9 @@ and its centre is at ``(origin_x + (col + 0.5) * res, origin_y + (row + 0.5) * r
 
 :func:`grid_coordinates` is the one map point -> cell transform of the stack: the message
 conversions (which snap poses to cell centres) and the bag analysis (which locates odometry
-and plan poses in cells) both build on it. Only numpy is imported, so the bag tools can use
-it on a machine without ROS.
+and plan poses in cells) both build on it. Only numpy is imported, and it lives outside
+``ird_ros.conversions`` (whose package imports the message types), so the bag tools can use it
+on a machine without ROS; ``ird_ros.conversions`` exports it with the conversions.
 """
 
 from __future__ import annotations

@@ -1,19 +1,21 @@
-"""Progress of long script runs, one mechanism: a tqdm bar on stderr.
+"""Progress of long command-line runs, one mechanism: a tqdm bar on stderr.
 
-``ird_core`` never imports tqdm: long core calls take a plain ``progress(step, total)`` callback
-(``ird_core.mcmc.ProgressFn``); ``step_progress`` turns a bar into such a callback. On a
-terminal the bar redraws in place. Off a terminal (logs, CI) it is ASCII, refreshed at most every
-10 s, and every refresh is its own line: tqdm's carriage returns would otherwise pile every
-refresh onto one endless log line.
+The computations never import tqdm: long core calls take a plain ``progress(step, total)``
+callback (``ird_core.mcmc.ProgressFn``); :func:`step_progress` turns a bar into such a callback.
+tqdm is imported only inside the functions that draw a bar, so importing any ``ird_core`` module
+never loads it. On a terminal the bar redraws in place. Off a terminal (logs, CI) it is ASCII,
+refreshed at most every 10 s, and every refresh is its own line: tqdm's carriage returns would
+otherwise pile every refresh onto one endless log line.
 """
 
 from __future__ import annotations
 
 import sys
 from contextlib import contextmanager
-from typing import Callable, Iterator, TextIO
+from typing import TYPE_CHECKING, Callable, Iterator, TextIO
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = ["progress_bar", "step_progress"]
 
@@ -33,8 +35,10 @@ class _LogLines:
         self._stream.flush()
 
 
-def progress_bar(total: "int | None", desc: str, unit: str = "it") -> tqdm:
+def progress_bar(total: int | None, desc: str, unit: str = "it") -> "tqdm":
     """A tqdm bar on stderr: redrawn in place on a terminal, one line per refresh otherwise."""
+    from tqdm import tqdm
+
     if sys.stderr.isatty():
         return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, dynamic_ncols=True, mininterval=0.5)
     return tqdm(total=total, desc=desc, unit=unit, file=_LogLines(sys.stderr), ascii=True, ncols=100,

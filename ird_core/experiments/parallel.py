@@ -1,31 +1,38 @@
-"""Parallel map for the experiment scripts: a local process pool or a Dask cluster, with a tqdm bar.
-
-Import this module before numpy (the scripts do): it pins BLAS to one thread per process, since
-the pool already uses every core and forked workers inherit the parent's BLAS set-up.
+"""Parallel map for the experiments' command lines: a local process pool or a Dask cluster, with
+a progress bar (:mod:`ird_core.experiments.progress`).
 
 The mapped function must be importable by the workers (a module-level function of ``ird_core``)
-and a pure function of its argument: results come back in input order, so they do not depend
-on the number of workers, the scheduler or the order in which items finish. ``ird_core`` stays
-free of Dask and tqdm; only the scripts use this module.
+and a pure function of its argument: results come back in input order, so they do not depend on
+the number of workers, the scheduler or the order in which items finish. Dask and tqdm are
+imported inside the functions that use them, so importing ``ird_core`` loads neither.
+
+The pool's forked workers inherit the parent's BLAS set-up, and the pool already uses every
+core: the command-line entry points set :data:`BLAS_THREAD_VARIABLES` to 1 before numpy loads
+(one BLAS thread per process).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any, Callable, Sequence, TypeVar
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+from ird_core.experiments import progress as progress_bars
 
-import argparse  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
-from typing import Any, Callable, Sequence, TypeVar  # noqa: E402
-
-import _progress  # noqa: E402  (scripts/ is on sys.path: the scripts import this module from there)
-
-__all__ = ["add_arguments", "describe", "progress_bar", "map_local", "map_dask", "parallel_map"]
+__all__ = ["BLAS_THREAD_VARIABLES", "TRIAL_FLAGS", "add_arguments", "add_trial_arguments", "describe", "progress_bar", "map_local",
+           "map_dask", "parallel_map"]
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+#: The environment variables that fix the BLAS thread count when numpy loads.
+BLAS_THREAD_VARIABLES: tuple[str, ...] = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+#: The map and sampler flags both experiments share, with their types.
+TRIAL_FLAGS: tuple[tuple[str, type], ...] = (
+    ("size", int), ("horizon", int), ("obs_dim", int), ("num_samples", int), ("beta", float), ("prior_sigma", float),
+    ("num_chains", int), ("warmup", int), ("thin", int), ("max_leapfrog", int))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,21 +42,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_trial_arguments(parser: argparse.ArgumentParser, defaults: Any) -> None:
-    """The map and sampler flags both experiment scripts share, defaulting to ``defaults``'
-    fields (an ``ird_core.experiments.TrialSpec`` or ``ird_core.experiments.active.ActiveSpec``)."""
-    for flag, kind in (("size", int), ("horizon", int), ("obs_dim", int), ("num_samples", int),
-                       ("beta", float), ("prior_sigma", float), ("num_chains", int), ("warmup", int),
-                       ("thin", int), ("max_leapfrog", int)):
+    """The :data:`TRIAL_FLAGS`, defaulting to ``defaults``' fields of the same names (an
+    ``ird_core.experiments.TrialSpec``, an ``ird_core.experiments.ActiveSpec`` or a namespace)."""
+    for flag, kind in TRIAL_FLAGS:
         parser.add_argument("--" + flag.replace("_", "-"), type=kind, default=getattr(defaults, flag))
 
 
 def describe(workers: int, scheduler: str | None) -> str:
+    """Where the map runs, for logs and reports."""
     return f"Dask {scheduler}" if scheduler else f"{workers} local worker(s)"
 
 
 def progress_bar(total: int, desc: str = "trials") -> Any:
-    """The scripts' one progress bar (``_progress.progress_bar``), counting trials."""
-    return _progress.progress_bar(total, desc, unit="trial")
+    """The command lines' one progress bar (``progress.progress_bar``), counting trials."""
+    return progress_bars.progress_bar(total, desc, unit="trial")
 
 
 def map_local(fn: Callable[[T], R], items: Sequence[T], workers: int, progress: Any = None) -> list[R]:

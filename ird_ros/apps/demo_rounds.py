@@ -1,4 +1,4 @@
-"""The demo's rounds of questions as data, text and a picture (no ROS; used by scripts/demo.py).
+"""The demo's rounds of questions as data, text and a picture (no ROS; used by ``ird_ros.apps.demo``).
 
 - :class:`Outcome`: what Rob reported at the end of one plan (plus whether the path holds gold).
 - :class:`RoundResult`: one question to the designer, its answer, and the plan Rob drove after it.
@@ -20,7 +20,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from ird_core.render import TERRAIN_COLORS, draw_path, draw_terrain
+from ird_core.render import draw_path, draw_terrain
+from ird_core.worlds.terrain import TERRAIN_COLORS
 from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
 
 __all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "save_rounds_figure",
@@ -68,7 +69,7 @@ class RoundResult:
 
 def terrain_counts(labels: np.ndarray, options: Sequence[np.ndarray]) -> np.ndarray:
     """(q, NUM_TERRAINS) int: how many cells of each terrain each option path visits (every cell
-    counts, revisits too, like ``lavaland.true_return``).
+    counts, revisits too, like ``evaluation.true_return``).
 
     Args:
         labels: (H, W) Terrain labels.

@@ -1,0 +1,107 @@
+"""Run the designer-in-the-loop experiment (docs/spec.md section 7): answered queries vs risk aversion.
+
+    ird-active [--trials N] [--out DIR] [--seed S] [--conditions C ...]
+        [--workers W] [--scheduler tcp://HOST:PORT] [--size N] [--horizon T] [--num-samples K] ...
+
+(``scripts/run_active.py`` is the same program.) For each condition (default: the paper's four
+and pot_of_gold) N paired trials (trial i uses instance seed S + i in every condition): the
+literal plan, the oracle plan (optimal under the true reward), and the IRD per-step plan
+(training-features baseline) after 0, 1, 2, 3 and 5 answered queries (2 options each, on the
+test map) for info-gain and random query selection, the posterior re-sampled (warm start) with
+all evidence after every answer. The trial logic is ird_core.experiments.active.run_trial, a
+pure function of its spec; trials run in a local process pool or on a Dask cluster
+(ird_core.experiments.parallel), so the numbers do not depend on W or the scheduler.
+
+Outputs in --out (default docs/results/active; ird_core.experiments.active_report): active.csv
+(one row per condition x strategy x number of queries, 95% Wilson / Student-t intervals),
+active_trials.csv (one row per trial x plan), active.md (tables, paired comparisons, wall
+time), active_<condition>.png (mean true return vs number of queries, both strategies with 95%
+bands, literal and oracle as lines), run.json.
+
+Exit status: 0 done, 2 a bad argument (the message names it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ird_core.experiments import active, active_report, parallel
+from ird_core.experiments.report import RunRecord
+from ird_core.posterior import METHODS
+from ird_core.worlds.lavaland import ALL_CONDITIONS
+
+__all__ = ["build_parser", "spec_settings", "run_active", "main"]
+
+#: The checkout (``--out``'s default lies in it).
+REPO_ROOT = Path(__file__).resolve().parents[2]
+#: How active.md and run.json name the program.
+COMMAND = "python scripts/run_active.py"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The flags, defaulting to :class:`~ird_core.experiments.active.ActiveSpec`'s defaults."""
+    d = active.ActiveSpec("side_effects", 0)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--trials", type=int, default=100, help="paired trials per condition")
+    p.add_argument("--out", type=Path, default=REPO_ROOT / "docs" / "results" / "active")
+    p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
+    p.add_argument("--conditions", nargs="+", default=list(ALL_CONDITIONS), choices=ALL_CONDITIONS)
+    parallel.add_arguments(p)
+    p.add_argument("--strategies", nargs="+", default=list(d.strategies), choices=active.STRATEGIES)
+    p.add_argument("--query-counts", nargs="+", type=int, default=list(d.query_counts))
+    p.add_argument("--num-options", type=int, default=d.num_options)
+    p.add_argument("--designer-beta", type=float, default=d.designer_beta)
+    p.add_argument("--choice-beta", type=float, default=None, help="robot's answer rationality (default: designer's)")
+    parallel.add_trial_arguments(p, d)
+    p.add_argument("--method", default=d.method, choices=METHODS)
+    p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
+    return p
+
+
+def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The ActiveSpec keywords of the flags."""
+    return dict(size=args.size, horizon=args.horizon, obs_dim=args.obs_dim, num_samples=args.num_samples,
+                beta=args.beta, prior_sigma=args.prior_sigma, method=args.method, num_chains=args.num_chains,
+                warmup=args.warmup, thin=args.thin, max_leapfrog=args.max_leapfrog, warm_warmup=args.warm_warmup,
+                query_counts=tuple(sorted(set(args.query_counts))), strategies=tuple(args.strategies),
+                num_options=args.num_options, designer_beta=args.designer_beta, choice_beta=args.choice_beta)
+
+
+def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], settings: dict[str, Any],
+               command: str) -> int:
+    """Run ``specs``, write the report into ``args.out`` and print the headline. Exit status 0."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(f"{len(specs)} trials ({args.trials} per condition x {len(args.conditions)} conditions), "
+          f"{parallel.describe(args.workers, args.scheduler)}", file=sys.stderr)
+    t0 = time.monotonic()
+    per_trial = parallel.parallel_map(active.run_trial, specs, args.workers, args.scheduler)
+    wall = time.monotonic() - t0
+    results = [r for rs in per_trial for r in rs]
+    summaries = active.aggregate(results)
+    shown = dict(settings, trials=args.trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+    active_report.write_report(args.out, results, summaries, args.conditions, RunRecord(command, wall, shown))
+    print("\n".join(active_report.headline(results, summaries, args.conditions, settings["query_counts"],
+                                           settings["strategies"])))
+    print(f"wall time {wall:.1f} s; outputs in {args.out}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The designer-in-the-loop experiment from the command line; exit status 0, 2 on a bad argument."""
+    args = build_parser().parse_args(argv)
+    if args.trials < 1:
+        print("--trials must be >= 1", file=sys.stderr)
+        return 2
+    settings = spec_settings(args)
+    try:
+        specs = active.make_specs(args.conditions, args.trials, args.seed, **settings)
+    except ValueError as exc:
+        print(f"bad argument: {exc}", file=sys.stderr)
+        return 2
+    command = f"{COMMAND} " + " ".join(sys.argv[1:] if argv is None else argv)
+    return run_active(args, specs, settings, command)

@@ -1,0 +1,188 @@
+"""The designer-in-the-loop report (docs/spec.md section 7): ``active.csv``,
+``active_trials.csv``, ``active.md`` (headline, tables), one figure per condition and ``run.json``.
+
+Invariants: ``active.csv`` has one row per condition x strategy x number of queries
+(``active.SUMMARY_COLUMNS``), ``active_trials.csv`` one row per trial x plan in run order
+(``active.RESULT_COLUMNS``); the headline's comparisons are paired by seed
+(:mod:`ird_core.experiments.statistics`). matplotlib is imported only when figures are drawn.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Sequence
+
+from ird_core.experiments import active
+from ird_core.experiments.parallel import describe
+from ird_core.experiments.report import RunRecord
+from ird_core.experiments.tables import cells_text, number, percent, write_csv, write_run_json
+from ird_core.worlds.terrain import Terrain
+
+__all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "plot_condition", "write_report"]
+
+LABEL: dict[str, str] = {"info_gain": "info-gain queries", "random": "random queries", "literal": "literal",
+                         "oracle": "oracle"}
+COLOUR: dict[str, str] = {"info_gain": "#4c72b0", "random": "#dd8452", "literal": "#c44e52", "oracle": "#55a868"}
+#: The outcome flags drawn per strategy: (name, summary field).
+OUTCOMES: tuple[tuple[str, str], ...] = (("lava", "lava_fraction"), ("target", "target_fraction"),
+                                         ("gold", "gold_fraction"))
+
+
+def markdown_table(summaries: Sequence[active.ActiveSummary], condition: str) -> str:
+    """The ``condition``'s rows as a markdown table."""
+    lines = ["| strategy | queries | trials | lava % [95% CI] | target % [95% CI] | gold % [95% CI] "
+             "| mean true return [95% CI] | asked | info gain (nats) | R-hat>1.1 |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for s in summaries:
+        if s.condition != condition:
+            continue
+        lines.append(
+            f"| {s.strategy} | {s.num_queries} | {s.trials} "
+            f"| {percent(s.lava_fraction)} [{percent(s.lava_ci_low)}, {percent(s.lava_ci_high)}] "
+            f"| {percent(s.target_fraction)} [{percent(s.target_ci_low)}, {percent(s.target_ci_high)}] "
+            f"| {percent(s.gold_fraction)} [{percent(s.gold_ci_low)}, {percent(s.gold_ci_high)}] "
+            f"| {number(s.mean_return)} [{number(s.return_ci_low)}, {number(s.return_ci_high)}] "
+            f"| {number(s.mean_asked, 1)} | {number(s.mean_information_gain, 3)} | {s.nonconverged} |")
+    return "\n".join(lines)
+
+
+def _first_query_count(counts: tuple[int, ...]) -> int | None:
+    """The count compared between strategies: 1, else the smallest positive one (None if none)."""
+    return 1 if 1 in counts else (min(c for c in counts if c > 0) if any(c > 0 for c in counts) else None)
+
+
+def _condition_headline(results: Sequence[active.ActiveResult], summaries: Sequence[active.ActiveSummary],
+                        c: str, counts: tuple[int, ...], strategies: tuple[str, ...]) -> list[str]:
+    lines = []
+    one = _first_query_count(counts)
+    three = 3 if 3 in counts else max(counts)
+    if one is not None and set(strategies) >= {"info_gain", "random"}:
+        mean, lo, hi, n = active.paired_difference(list(results), c, ("info_gain", one), ("random", one))
+        verdict = "beats" if lo > 0 else ("is beaten by" if hi < 0 else "does not separate from")
+        lines.append(f"- {c}: after {one} quer{'y' if one == 1 else 'ies'}, info-gain {verdict} random: paired "
+                     f"return difference {number(mean)} [{number(lo)}, {number(hi)}] (n = {n})")
+    closed = ", ".join(f"{s} {number(100 * active.gap_closed(list(summaries), c, s, three), 0)}%" for s in strategies)
+    before = number(100 * active.gap_closed(list(summaries), c, strategies[0], 0), 0) if 0 in counts else "nan"
+    lines.append(f"- {c}: share of the literal-to-oracle return gap closed after {three} queries: {closed} "
+                 f"(IRD without queries: {before}%)")
+    by = {(s.strategy, s.num_queries): s for s in summaries if s.condition == c}
+    for s in strategies:
+        seq = "; ".join(f"{k}: lava {percent(by[s, k].lava_fraction)}%, target {percent(by[s, k].target_fraction)}%"
+                        + (f", gold {percent(by[s, k].gold_fraction)}%" if c == "pot_of_gold" else "")
+                        for k in counts if (s, k) in by)
+        lines.append(f"  - {s} by number of queries: {seq}")
+    return lines
+
+
+def headline(results: Sequence[active.ActiveResult], summaries: Sequence[active.ActiveSummary],
+             conditions: Sequence[str], counts: tuple[int, ...], strategies: tuple[str, ...]) -> list[str]:
+    """The three questions, per condition: one info-gain vs one random query (paired), the share
+    of the literal-to-oracle gap closed by 3 queries, lava and gold after the queries."""
+    return [line for c in conditions for line in _condition_headline(results, summaries, c, counts, strategies)]
+
+
+def write_markdown(path: Path, results: Sequence[active.ActiveResult], summaries: Sequence[active.ActiveSummary],
+                   conditions: Sequence[str], run: RunRecord) -> None:
+    """``active.md``: command, wall time, settings, the headline and one table per condition."""
+    settings = run.settings
+    counts, strategies = tuple(settings["query_counts"]), tuple(settings["strategies"])
+    text = ["# Designer in the loop: answered queries vs risk aversion", "",
+            f"Command: `{run.command}`", "",
+            f"Wall time: {run.wall:.1f} s ({describe(settings['workers'], settings['scheduler'])}).", "",
+            "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items() if k not in ("workers", "scheduler")),
+            "", "IRD plan: per_step x training_features (exact DP on all posterior samples), re-planned after every "
+            "answer on the posterior re-sampled (warm start) with all evidence so far. Queries: 2 paths on the test "
+            "map, chosen by expected information gain or uniformly among the samples' distinct optimal paths; "
+            "answered by the simulated designer (Boltzmann on true return). literal = the proxy's plan, oracle = the "
+            "true-reward optimum (exact DP). Intervals: 95% Wilson for fractions, 95% Student-t for mean returns "
+            "and for paired differences. `asked` = questions really asked (a round is skipped when all samples "
+            "plan the same path).", "",
+            "## Headline", "", *headline(results, summaries, conditions, counts, strategies), ""]
+    for c in conditions:
+        text += [f"## {c}", "", markdown_table(summaries, c), ""]
+    path.write_text("\n".join(text))
+
+
+def _plot_returns(ax: Any, rows: list[active.ActiveSummary], strategy: str) -> list[int]:
+    """A strategy's mean true return by number of queries with its 95% band; the counts drawn."""
+    ss = sorted((s for s in rows if s.strategy == strategy), key=lambda s: s.num_queries)
+    x = [s.num_queries for s in ss]
+    if ss:
+        ax.plot(x, [s.mean_return for s in ss], marker="o", color=COLOUR[strategy], label=f"IRD, {LABEL[strategy]}")
+        ax.fill_between(x, [s.return_ci_low for s in ss], [s.return_ci_high for s in ss], color=COLOUR[strategy],
+                        alpha=0.2, lw=0)
+    return x
+
+
+def _plot_outcomes(ax: Any, rows: list[active.ActiveSummary], strategy: str, condition: str) -> None:
+    """A strategy's lava / target (/ gold on pot_of_gold) fractions by number of queries."""
+    from ird_core.worlds.terrain import TERRAIN_COLORS
+
+    ss = sorted((s for s in rows if s.strategy == strategy), key=lambda s: s.num_queries)
+    x = [s.num_queries for s in ss]
+    for name, key in OUTCOMES:
+        if name == "gold" and condition != "pot_of_gold":
+            continue
+        ax.plot(x, [getattr(s, key) for s in ss], color=TERRAIN_COLORS[Terrain[name.upper()]],
+                marker="o" if strategy == "info_gain" else "s", ls="-" if strategy == "info_gain" else ":",
+                label=f"{name}, {LABEL[strategy]}")
+
+
+def _bounds(ax: Any, rows: list[active.ActiveSummary]) -> None:
+    """Literal and oracle as dashed lines with their 95% bands."""
+    for s in rows:
+        if s.strategy in ("literal", "oracle"):
+            ax.axhline(s.mean_return, color=COLOUR[s.strategy], lw=1.5, ls="--", label=f"{LABEL[s.strategy]}")
+            ax.axhspan(s.return_ci_low, s.return_ci_high, color=COLOUR[s.strategy], alpha=0.12, lw=0)
+
+
+def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], condition: str) -> Path:
+    """``active_<condition>.png``: mean true return vs number of queries (both strategies, literal
+    and oracle as lines) and the IRD path's outcome fractions."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [s for s in summaries if s.condition == condition]
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), dpi=110)
+    _bounds(ax, rows)
+    for strategy in ("info_gain", "random"):
+        x = _plot_returns(ax, rows, strategy)
+        if not x:
+            continue
+        _plot_outcomes(ax2, rows, strategy, condition)
+        ax.set_xticks(x)
+        ax2.set_xticks(x)
+    n = rows[0].trials if rows else 0
+    ax.set_xlabel("answered queries")
+    ax.set_ylabel("mean true return")
+    ax.set_title(f"{condition.replace('_', ' ')}: true return ({n} paired trials, 95% CI)", fontsize=9)
+    ax.legend(frameon=False, fontsize=7)
+    ax2.set_xlabel("answered queries")
+    ax2.set_ylabel("fraction of trials")
+    ax2.set_ylim(-0.02, 1.02)
+    ax2.set_title("IRD path: touches lava / reaches target / reaches gold\n(solid: info-gain, dotted: random)",
+                  fontsize=8)
+    ax2.legend(frameon=False, fontsize=6, ncol=2)
+    for a in (ax, ax2):
+        a.spines[["top", "right"]].set_visible(False)
+    fig.tight_layout()
+    path = out / f"active_{condition}.png"
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def write_report(out: Path, results: Sequence[active.ActiveResult], summaries: Sequence[active.ActiveSummary],
+                 conditions: Sequence[str], run: RunRecord) -> list[Path]:
+    """Every file of the report into ``out`` (which must exist); returns the figures written."""
+    write_csv(out / "active.csv", active.SUMMARY_COLUMNS, (dataclasses.asdict(s) for s in summaries))
+    write_csv(out / "active_trials.csv", active.RESULT_COLUMNS,
+              (dict(dataclasses.asdict(r), cells=cells_text(r.cells)) for r in results))
+    write_markdown(out / "active.md", results, summaries, conditions, run)
+    figures = [plot_condition(out, summaries, c) for c in conditions]
+    write_run_json(out / "run.json", run.command, run.wall, run.settings, figures)
+    return figures
+

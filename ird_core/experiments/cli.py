@@ -1,0 +1,255 @@
+r"""Run the Lavaland experiments (IRD paper Figure 4 and the appendix factorial).
+
+    ird-experiments [--quick] [--trials N] [--out DIR] [--seed S]
+        [--workers W] [--scheduler tcp://HOST:PORT] [--conditions C ...]
+        [--size N] [--horizon T] [--obs-dim D] [--num-samples K] [--beta B] ...
+        [--factorial-samples N] [--traj-work-limit N] [--z-sampler METHOD FIELD=VALUE ...]
+
+(``scripts/run_experiments.py`` is the same program.) With no flags: the paper's scale, 15x15
+maps, T = 30, 50-d observations, 100 paired trials per condition, both Z-approximations, 1000
+Sample-Z proxies and the full factorial. --quick: the small setting for a fast look (8x8,
+T = 12, 10-d, 64 samples from 4 chains, warm-up 50, thin 4, at most 16 leapfrog steps, 100
+Sample-Z proxies, factorial on 10 samples; ird_core.experiments.QUICK); flags given with --quick
+override it. --z-sampler sample_z num_chains=8 warmup=200 gives one Z-approximation its own
+sampler settings (the numeric fields of ird_core.experiments.SamplerSettings; the others keep
+that method's defaults).
+
+Every condition x planner gets N seeded trials (trial i uses instance seed S + i, paired over
+conditions). One trial = one Lavaland instance: the literal plan, the oracle plan (optimal
+under the true reward), and per Z-approximation ONE posterior whose samples feed every IRD
+planner (ird_core.experiments.run_trial): the main planner on all samples, the factorial's
+per-step and trajectory plans on the same first --factorial-samples samples. Locally the
+trials run in a process pool (W workers, default = cores); with --scheduler on a Dask
+distributed cluster (same trial function; both in ird_core.experiments.parallel, tqdm progress
+on stderr). A trial is a pure function of its spec, so the numbers do not depend on W, the
+scheduler or completion order: a Dask run reproduces a local run bit for bit.
+
+A local Dask cluster (three shells in the checkout; the workers import ird_core from it):
+
+    .venv/bin/dask scheduler --host 127.0.0.1 --port 8786 --no-dashboard
+    PYTHONPATH=$PWD OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+        .venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1 --no-dashboard
+    .venv/bin/python scripts/run_experiments.py --scheduler tcp://127.0.0.1:8786
+
+Outputs in --out (default out/experiments; ird_core.experiments.report): results.csv (one row
+per experiment x condition x planner, with the share of the literal-to-oracle return gap each
+IRD planner closes and its 95% paired bootstrap interval), trials.csv (one row per trial x
+planner), results.md (tables + settings + wall time), figure4_lava.png (lava fraction per
+condition: literal / IRD Sample-Z / IRD MaxEnt-Z / oracle, 95% Wilson error bars),
+figure4_return.png (mean true return, 95% Student-t error bars), factorial_<z>.png (per
+condition, granularity x baseline), run.json. The wall time is printed last.
+
+--world FILE (a world file, e.g. worlds/figure1.yaml): the trials run on the file's instance
+instead of Lavaland (condition ``file``; --conditions, --size, --horizon, --obs-dim unused).
+The world is fixed, so trial i differs only in its seed SEED + i, which seeds the posterior
+sampler and the Sample-Z proxies: N trials measure how the plans vary with the posterior's
+randomness on that one map. The posterior is the joint one over every training world of the
+file. A bad file: exit status 2 with the loader's message (file, key, value).
+
+Exit status: 0 done, 2 a bad argument (the message names it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ird_core.experiments import parallel, report
+from ird_core.experiments.summaries import aggregate
+from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
+from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
+from ird_core.worlds.world_file import load_world
+
+__all__ = ["SPEC_FLAGS", "SHARED_SAMPLER_FLAGS", "DEFAULT_TRIALS", "build_parser", "resolve_spec_flags",
+           "z_samplers", "spec_settings", "trial_settings", "world_conditions", "run_local", "run_dask",
+           "run_experiment", "main"]
+
+#: The checkout (``--out``'s default lies in it).
+REPO_ROOT = Path(__file__).resolve().parents[2]
+#: TrialSpec fields set by a flag of the same name (dashes for underscores); --quick's fields among them.
+SPEC_FLAGS: tuple[str, ...] = (
+    "size", "horizon", "obs_dim", "num_samples", "beta", "prior_sigma", "num_chains", "warmup", "thin",
+    "max_leapfrog", "num_proxy_samples", "factorial_samples", "traj_work_limit")
+#: The sampler flags shared by both Z-approximations.
+SHARED_SAMPLER_FLAGS: tuple[str, ...] = ("num_chains", "warmup", "thin", "max_leapfrog")
+#: --z-sampler's FIELD=VALUE fields: SamplerSettings' integer and real ones.
+Z_SAMPLER_INTS = tuple(f.name for f in dataclasses.fields(SamplerSettings) if f.type in ("int", int))
+Z_SAMPLER_REALS = tuple(f.name for f in dataclasses.fields(SamplerSettings) if f.type in ("float", float))
+#: Trials per condition without --trials.
+DEFAULT_TRIALS: int = 100
+#: How results.md and run.json name the program.
+COMMAND = "python scripts/run_experiments.py"
+
+
+# --------------------------------------------------------------------------- flags
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The flags; the TrialSpec flags default to None (resolved by :func:`resolve_spec_flags`)."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--trials", type=int, default=None, help=f"trials per condition (default {DEFAULT_TRIALS})")
+    p.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "experiments")
+    p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
+    parallel.add_arguments(p)
+    p.add_argument("--world", type=Path, default=None, metavar="FILE",
+                   help="run the trials on this world file (seeds vary the sampler only)")
+    p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS)
+    p.add_argument("--z-methods", nargs="+", default=list(Z_METHODS), choices=Z_METHODS)
+    p.add_argument("--no-factorial", action="store_true", help="main experiment only")
+    p.add_argument("--quick", action="store_true",
+                   help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
+    parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
+    p.add_argument("--num-proxy-samples", type=int, default=None)
+    p.add_argument("--factorial-samples", type=int, default=None,
+                   help="posterior samples of every factorial plan, per-step and trajectory alike (the first N)")
+    p.add_argument("--traj-work-limit", type=int, default=None,
+                   help="label expansions per exact trajectory plan (deterministic, unlike a time limit)")
+    p.add_argument("--z-sampler", nargs="+", action="append", default=[], metavar="ARG",
+                   help="METHOD FIELD=VALUE ...: that Z-approximation's own sampler settings "
+                        f"(fields {', '.join(Z_SAMPLER_INTS + Z_SAMPLER_REALS)})")
+    return p
+
+
+def resolve_spec_flags(args: argparse.Namespace) -> None:
+    """Fill the TrialSpec flags left unset: from --quick's setting, else TrialSpec's defaults."""
+    defaults = TrialSpec("side_effects", 0)
+    args.explicit = {field for field in SPEC_FLAGS if getattr(args, field) is not None}
+    for field in SPEC_FLAGS:
+        if getattr(args, field) is None:
+            setattr(args, field, QUICK[field] if args.quick and field in QUICK else getattr(defaults, field))
+
+
+def _quick_samplers(args: argparse.Namespace) -> dict[str, None]:
+    """Both methods on the shared sampler flags (fixed length) with --quick, as the small setting
+    was run, or when one of those flags is given: it then means both methods' setting."""
+    shared = args.quick or bool(set(SHARED_SAMPLER_FLAGS) & getattr(args, "explicit", set()))
+    return {"sample_z_sampler": None, "maxent_z_sampler": None} if shared else {}
+
+
+def _sampler_values(method: str, items: list[str]) -> dict[str, int | float]:
+    """--z-sampler's ``FIELD=VALUE`` items of one method (ValueError naming the bad item)."""
+    names, reals = list(Z_SAMPLER_INTS), list(Z_SAMPLER_REALS)
+    values: dict[str, int | float] = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        if key in reals:
+            try:
+                values[key] = float(value)
+            except ValueError:
+                raise ValueError(f"--z-sampler {method}: expected {key}=NUMBER, got {item!r}") from None
+            continue
+        if key not in names or not value.lstrip("-").isdigit():
+            raise ValueError(f"--z-sampler {method}: expected FIELD=INTEGER with FIELD in {names} "
+                             f"(or FIELD=NUMBER with FIELD in {reals}), got {item!r}")
+        values[key] = int(value)
+    return values
+
+
+def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
+    """``{"<method>_sampler": SamplerSettings}`` from --z-sampler (ValueError naming the bad item)."""
+    out: dict[str, SamplerSettings | None] = dict(_quick_samplers(args))
+    base = TrialSpec("side_effects", 0, **{f: getattr(args, f) for f in SPEC_FLAGS}, **out)
+    for method, *items in args.z_sampler:
+        if method not in Z_METHODS:
+            raise ValueError(f"--z-sampler: method must be one of {Z_METHODS}, got {method!r}")
+        out[f"{method}_sampler"] = dataclasses.replace(base.sampler(method), **_sampler_values(method, items))
+    return out
+
+
+def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The TrialSpec keywords of the (resolved) flags."""
+    return dict(**{f: getattr(args, f) for f in SPEC_FLAGS}, z_methods=tuple(args.z_methods),
+                factorial=not args.no_factorial, **z_samplers(args))
+
+
+def trial_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The flags' TrialSpec keywords, resolved and validated (ValueError naming the bad flag)."""
+    resolve_spec_flags(args)
+    settings = spec_settings(args)
+    TrialSpec("side_effects", 0, **settings)
+    return settings
+
+
+def world_conditions(args: argparse.Namespace, settings: dict[str, Any]) -> list[str]:
+    """The run's conditions: --conditions, or with --world the file's (whose resolved path is
+    then set in ``settings["world"]``). ValueError ``--world: ...`` if the file does not load."""
+    if args.world is None:
+        return list(args.conditions)
+    try:
+        load_world(args.world)
+    except ValueError as exc:
+        raise ValueError(f"--world: {exc}") from None
+    settings["world"] = str(args.world.resolve())
+    return [FILE_CONDITION]
+
+
+# --------------------------------------------------------------------------- running
+
+
+def _flatten(per_trial: list[list[TrialResult]]) -> list[TrialResult]:
+    return [r for rs in per_trial for r in rs]
+
+
+def run_local(specs: list[TrialSpec], workers: int, progress: Any = None) -> list[TrialResult]:
+    """Run specs in a process pool; results in spec order."""
+    return _flatten(parallel.map_local(run_trial, specs, workers, progress))
+
+
+def run_dask(specs: list[TrialSpec], client: Any, progress: Any = None) -> list[TrialResult]:
+    """Run specs on a Dask distributed client; results in spec order."""
+    return _flatten(parallel.map_dask(run_trial, specs, client, progress))
+
+
+def _shown_settings(args: argparse.Namespace, settings: dict[str, Any], conditions: list[str],
+                    trials: int) -> dict[str, Any]:
+    """The settings the report states: each method's effective sampler (defaults included) and
+    the run's trials, seed, workers and scheduler."""
+    effective = TrialSpec(conditions[0], 0, **settings)
+    return dict(settings, **{f"{z}_sampler": effective.sampler(z) for z in Z_METHODS}, trials=trials,
+                seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+
+
+def run_experiment(args: argparse.Namespace, settings: dict[str, Any], conditions: list[str], command: str) -> int:
+    """Run the trials of ``conditions`` with ``settings``, write the report into ``args.out``
+    and print Figure 4's table, the claim check and the wall time. Exit status 0, 2 on bad --trials."""
+    trials = DEFAULT_TRIALS if args.trials is None else args.trials
+    if trials < 1:
+        print("--trials must be >= 1", file=sys.stderr)
+        return 2
+    specs = make_specs(conditions, trials, args.seed, **settings)
+    args.out.mkdir(parents=True, exist_ok=True)
+    where = parallel.describe(args.workers, args.scheduler)
+    print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), {where}", file=sys.stderr)
+    t0 = time.monotonic()
+    results = _flatten(parallel.parallel_map(run_trial, specs, args.workers, args.scheduler))
+    wall = time.monotonic() - t0
+    summaries = aggregate(results)
+    run = report.RunRecord(command, wall, _shown_settings(args, settings, conditions, trials))
+    report.write_report(args.out, results, summaries, run)
+    print(report.markdown_table(summaries, "main"))
+    print("\n".join(report.claim_check(summaries)))
+    print(f"outputs in {args.out}")
+    print(f"Wall time: {wall:.1f} s ({wall / 60:.1f} min) for {len(specs)} trials, {where}")
+    return 0
+
+
+def command_line(argv: list[str] | None) -> str:
+    """The command as results.md records it."""
+    return f"{COMMAND} " + " ".join(sys.argv[1:] if argv is None else argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The experiments without ROS (``ird_ros.apps.experiments`` adds ``--via-ros``)."""
+    args = build_parser().parse_args(argv)
+    try:
+        settings = trial_settings(args)
+        conditions = world_conditions(args, settings)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    return run_experiment(args, settings, conditions, command_line(argv))

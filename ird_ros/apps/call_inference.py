@@ -1,0 +1,82 @@
+"""Minimal client of the IRD inference service (/ird/infer): copy it and adapt.
+
+    ird-infer                   # a small generated map (or: .venv/bin/python scripts/call_inference.py)
+    ird-infer --from-world      # the world node's training worlds + proxy
+    options: --method maxent_z|sample_z  --beta 10  --num-samples 200  --seed 0  --timeout 120
+
+The inference node must be running in the same ROS domain (ROS_DOMAIN_ID), e.g. started with
+``scripts/launch_graph.py --nodes inference`` (or the whole graph for --from-world; with
+``--world FILE`` the request holds every training world of the file).
+Prints the posterior (docs/spec.md section 3): per feature the proxy weight, posterior mean and
+std; then the sampler's diagnostics (acceptance rate, largest split R-hat, smallest ESS).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+import numpy as np
+
+from ird_core.posterior import METHODS
+from ird_ros import conversions
+from ird_ros.client import ClientTimeout, IrdClient, infer_request
+
+
+def generated_request(seed: int) -> Any:
+    """A 6x6 training map with indicator features (dirt, grass, target) and a designer's proxy."""
+    rng = np.random.default_rng(seed)
+    terrain = rng.choice(3, size=(6, 6), p=[0.65, 0.3, 0.05])  # 0 dirt, 1 grass, 2 target
+    terrain[5, 5] = 2                                          # at least one target
+    features = np.eye(3, dtype=np.float32)[terrain]            # (H, W, d) one-hot
+    training_map = conversions.feature_grid_to_msg(features, ["dirt", "grass", "target"])
+    proxy_weights = [0.1, -0.2, 1.0]                           # what the designer wrote down
+    return infer_request(training_map, (0, 0), 10, proxy_weights, beta=0.0, method="", num_samples=0, seed=0)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--from-world", action="store_true", help="use the world node's request (/world/infer_request)")
+    parser.add_argument("--method", default="maxent_z", choices=METHODS)
+    parser.add_argument("--beta", type=float, default=10.0)
+    parser.add_argument("--num-samples", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--timeout", type=float, default=120.0, help="seconds for discovery and for the answer")
+    return parser.parse_args(argv)
+
+
+def print_posterior(post: conversions.PosteriorData) -> None:
+    """Per feature the proxy weight, posterior mean and std; then the sampler's diagnostics."""
+    mean, std = post.samples.mean(axis=0), post.samples.std(axis=0)
+    print(f"{post.method}, beta={post.beta:g}, sigma={post.prior_sigma:g}: "
+          f"{post.samples.shape[0]} samples from {post.num_chains} chains")
+    print(f"{'feature':<12} {'proxy':>8} {'mean':>8} {'std':>8}")
+    for name, w, m, s in zip(post.feature_names, post.proxy_weights, mean, std):
+        print(f"{name:<12} {w:>8.3f} {m:>8.3f} {s:>8.3f}")
+    print(f"acceptance {post.acceptance_rate:.2f}, R-hat max {post.r_hat_max:.3f}, "
+          f"ESS min {post.ess_min:.0f}" + ("" if post.converged else "  (NOT converged: R-hat > 1.1)"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Ask /ird/infer once and print the posterior; 1 if the graph is not found or refuses."""
+    args = parse_args(argv)
+    with IrdClient(node_name="call_inference") as ird:  # this client's own sockets stay on loopback too
+        try:
+            request = ird.world_infer_request(timeout=args.timeout) if args.from_world else generated_request(args.seed)
+            request.beta, request.method = args.beta, args.method
+            request.num_samples, request.seed = args.num_samples, args.seed
+            request.prior_sigma = 0.0  # 0 = the node's default
+            result = ird.infer(request, timeout=args.timeout)
+        except ClientTimeout as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+    if not result.ok:
+        print(f"inference refused the request: {result.message}", file=sys.stderr)
+        return 1
+    print_posterior(result.unwrap())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,334 @@
+"""The demo mission: Rob, a proxy reward, and lava the designer never saw.
+
+Starts the whole ROS 2 graph (world, perception, inference, planner, rob, recorder) in a
+private domain, then, as an ordinary client of the graph:
+
+1. reads the designer's proxy reward and the training map the world publishes;
+2. calls ``/ird/infer`` (IRD posterior over the true reward given the proxy);
+3. asks ``/ird/plan`` for the literal plan (the proxy taken at its word) and the IRD plan
+   (risk-averse over the posterior samples);
+4. lets Rob execute both plans on the test map and reads his reports on ``/rob/status``;
+5. stops the graph (the recorder closes the bag), and writes a picture: the training map, the
+   test map with both paths, and the posterior's risk map.
+
+It also measures, directly with ``ird_core`` and the same settings, how often over 20 seeds the
+literal plan and the IRD plan touch lava, so the one mission shown is put in context.
+
+With ``--queries N`` the designer node joins the graph and, after the IRD plan, the demo asks
+``N`` questions: each round calls ``/ird/query`` (options on the test map Rob is about to
+drive), waits for the designer's answer on ``/ird/queries`` (``--designer simulated``: the
+simulated designer node answers with the true rewards; ``--designer web``: a person answers on
+the page whose URL is printed, with no time limit), takes the re-sampled posterior and its risk
+map, asks ``/ird/plan`` for a new IRD plan and lets Rob drive it. It prints a table of every
+plan (information gain, answer, lava, target, gold, true return) and draws ``rounds.png``: the
+plans before and after each answer with the options asked, and the risk maps. Ctrl-C stops the
+graph cleanly (the bag is closed) at any point.
+
+    bash scripts/demo.sh [--condition latent_raw] [--seed 3] [--out out/demo]
+    bash scripts/demo.sh --queries 3 [--condition pot_of_gold] [--designer web]
+    bash scripts/demo.sh --world worlds/figure1.yaml [--queries 2]
+
+With ``--world FILE`` the graph runs the world file (``ird_core.worlds.world_file``) instead of a
+generated Lavaland: the world node and perception load it, ``/ird/infer`` gets every training
+world of the file (the world's ``/world/infer_request``), ``--condition`` is unused and
+``--seed`` seeds the sampler and the designer only; the survey then repeats the mission's
+planners on the same file over sampler seeds 0-19.
+
+The mission (docs/spec.md sections 3-7) talks to the graph only through
+``ird_ros.client.IrdClient``; its rounds of questions are drawn by ``ird_ros.apps.demo_rounds``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime as dt
+import multiprocessing
+import multiprocessing.pool
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ird_core import posterior
+from ird_core.designer.queries import STRATEGIES
+from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, QUICK, TrialSpec, run_trial, trial_instance
+from ird_core.render import save_mission_figure
+from ird_core.worlds import lavaland
+from ird_core.worlds.lavaland import LavalandInstance
+from ird_ros.apps.demo_mission import Mission, Results
+from ird_ros.apps.demo_rounds import rounds_table, save_rounds_figure
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: The demo's default seed: the first one, and (with the default settings) one of the seeds 0-19 on
+#: which the literal plan walks into lava, the failure the paper is about (Section 1). The demo
+#: prints the survey over those 20 seeds so this one mission is not mistaken for the average.
+DEFAULT_SEED = 0
+SURVEY_SEEDS = tuple(range(20))
+#: Query rounds: 2 options (the exact best pair), info_gain; each round costs a proposal
+#: (candidates = the distinct plans of the posterior samples), a re-sampling and Rob's drive.
+DEFAULT_NUM_OPTIONS = 2
+#: The simulated designer answers by the Boltzmann rule on the options' true returns.
+DEFAULT_DESIGNER_BETA = 1.0
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--condition", default="latent_raw", choices=lavaland.ALL_CONDITIONS)
+    p.add_argument("--world", type=Path, default=None, metavar="FILE",
+                   help="a world file (worlds/*.yaml) instead of a generated Lavaland")
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help="world seed (maps, proxy; also the designer's)")
+    p.add_argument("--method", default="maxent_z", choices=posterior.METHODS)
+    p.add_argument("--beta", type=float, default=None, help="designer rationality (default: the experiments')")
+    p.add_argument("--num-samples", type=int, default=None, help="posterior samples (default: the experiments')")
+    p.add_argument("--rate", type=float, default=10.0, help="Rob's speed, cells per second")
+    p.add_argument("--out", default=str(REPO / "out" / "demo"), help="output folder (a run folder is made inside)")
+    p.add_argument("--no-survey", action="store_true", help="skip the 20-seed survey")
+    q = p.add_argument_group("questions to the designer (after the IRD plan)")
+    q.add_argument("--queries", type=int, default=0, help="rounds of questions (0 = none: the plain mission)")
+    q.add_argument("--designer", default="simulated", choices=("simulated", "web"),
+                   help="who answers: the simulated designer node, or a person on the web page")
+    q.add_argument("--num-options", type=int, default=DEFAULT_NUM_OPTIONS, help="paths per question")
+    q.add_argument("--strategy", default="info_gain", choices=STRATEGIES, help="how the options are chosen")
+    q.add_argument("--designer-beta", type=float, default=DEFAULT_DESIGNER_BETA,
+                   help="simulated designer's rationality on the options' true returns")
+    q.add_argument("--port", type=int, default=8765, help="web designer's port on 127.0.0.1")
+    args = p.parse_args(argv)
+    if args.queries < 0:
+        p.error(f"--queries: must be >= 0, got {args.queries}")
+    if args.designer == "web" and not args.queries:
+        p.error("--designer web: the designer only answers questions; add --queries N")
+    if args.num_options < 2:
+        p.error(f"--num-options: must be >= 2, got {args.num_options}")
+    if not 1 <= args.port <= 65535:
+        p.error(f"--port: must be in 1..65535, got {args.port}")
+    return args
+
+
+# --------------------------------------------------------------------------- set-up
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """The mission's settings: the trial spec the graph is configured with, the instance the world
+    node builds from it (its ground truth judges gold), the scene's name and the run folder."""
+
+    spec: TrialSpec
+    inst: LavalandInstance
+    scene: str
+    run_dir: Path
+    params: Path
+
+
+def write_params(run_dir: Path, args: argparse.Namespace, spec: TrialSpec) -> Path:
+    """The graph's parameter file with the experiments' world and sampler settings."""
+    params = yaml.safe_load((REPO / "msgs_config" / "params" / "graph.yaml").read_text())
+    world = params["world"]["ros__parameters"]
+    world.update(condition=args.condition, seed=args.seed, height=spec.size, width=spec.size,
+                 horizon=spec.horizon, obs_dim=spec.obs_dim)
+    params["inference"]["ros__parameters"].update(
+        num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
+        num_proxy_samples=spec.num_proxy_samples)
+    if args.world is not None:
+        for node in ("world", "perception"):
+            params[node]["ros__parameters"]["world_file"] = str(args.world.resolve())
+    params["rob"]["ros__parameters"]["rate_hz"] = float(args.rate)
+    params["designer"]["ros__parameters"].update(mode=args.designer, beta=float(args.designer_beta),
+                                                 seed=int(args.seed), port=int(args.port))
+    path = run_dir / "graph.yaml"
+    path.write_text(yaml.safe_dump(params, sort_keys=False))
+    return path
+
+
+def mission_spec(args: argparse.Namespace) -> tuple[TrialSpec, str]:
+    """The trial spec of the demo world (the experiments' small setting) and the scene's name;
+    ``ValueError`` for an unreadable ``--world``."""
+    base = TrialSpec(condition=args.condition, seed=args.seed, **QUICK)
+    beta = args.beta if args.beta is not None else base.beta
+    num_samples = args.num_samples if args.num_samples is not None else base.num_samples
+    spec = dataclasses.replace(base, beta=beta, num_samples=num_samples, z_methods=(args.method,), factorial=False)
+    if args.world is None:
+        return spec, args.condition
+    from ird_core.worlds.world_file import load_world_file
+
+    scene = load_world_file(args.world).name
+    return dataclasses.replace(spec, condition=lavaland.FILE_CONDITION, world=str(args.world.resolve())), scene
+
+
+def prepare(args: argparse.Namespace, spec: TrialSpec, scene: str) -> Setup:
+    """The run folder with the graph's parameter file; the world node's instance (its ground truth)."""
+    inst = trial_instance(spec)  # the world node builds (or loads) the same instance
+    run_dir = Path(args.out) / dt.datetime.now().strftime("run-%Y%m%d-%H%M%S")
+    run_dir.mkdir(parents=True, exist_ok=False)
+    return Setup(spec, inst, scene, run_dir, write_params(run_dir, args, spec))
+
+
+def print_header(args: argparse.Namespace, setup: Setup) -> None:
+    spec = setup.spec
+    print(f"IRD demo: {'world file' if args.world else 'condition'} {setup.scene}, seed {args.seed}, {args.method}, "
+          f"beta {spec.beta}, {spec.num_samples} samples, IRD planner {MAIN_GRANULARITY}/{MAIN_BASELINE}\n"
+          f"output: {setup.run_dir}", flush=True)
+    if args.queries:
+        print(f"then {args.queries} question(s) to the {args.designer} designer: {args.num_options} options "
+              f"({args.strategy})" + (f", designer beta {args.designer_beta}" if args.designer == "simulated" else ""),
+              flush=True)
+    print(flush=True)
+
+
+# --------------------------------------------------------------------------- the survey
+
+
+def survey(spec: TrialSpec) -> dict[str, int]:
+    """Seeds on which each planner touches lava, straight from ird_core (runs beside the graph)."""
+    counts: dict[str, int] = {}
+    for seed in SURVEY_SEEDS:
+        for result in run_trial(dataclasses.replace(spec, seed=seed)):
+            counts[result.planner] = counts.get(result.planner, 0) + int(result.touched_lava)
+    return counts
+
+
+class Survey:
+    """The 20-seed survey in one worker process that ignores Ctrl-C (the demo ends it itself)."""
+
+    def __init__(self, spec: TrialSpec | None) -> None:
+        self._pool: multiprocessing.pool.Pool | None = None
+        self._job: Any = None
+        if spec is not None:
+            self._pool = multiprocessing.Pool(1, initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN))
+            self._job = self._pool.apply_async(survey, (spec,))
+
+    def cancel(self) -> None:
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool = None
+
+    def report(self, scene: str, method: str) -> None:
+        """Wait for the survey and print it (nothing if it was skipped or cancelled)."""
+        if self._pool is None:
+            return
+        counts = self._job.get()
+        n = len(SURVEY_SEEDS)
+        print(f"\nOver seeds {SURVEY_SEEDS[0]}-{SURVEY_SEEDS[-1]} ({scene}, same settings, ird_core "
+              f"directly): literal touches lava on {counts['literal']}/{n}, "
+              f"IRD on {counts['ird_' + method]}/{n}.")
+        self._pool.close()
+        self._pool.join()
+
+
+# --------------------------------------------------------------------------- the graph
+
+
+def web_url(output: str, port: int) -> str:
+    """The page's URL from the designer's log line ``designer web page at URL`` (else 127.0.0.1:port)."""
+    marker = "designer web page at "
+    lines = [line for line in output.splitlines() if marker in line]
+    return lines[-1].split(marker, 1)[1].split()[0] if lines else f"http://127.0.0.1:{port}/"
+
+
+def run_graph(args: argparse.Namespace, setup: Setup, results: Results) -> None:
+    """Start the graph, run the mission as its client, stop the graph (the bag is closed).
+
+    Raises ``LaunchError`` (a node never got ready) and lets Ctrl-C through."""
+    from ird_ros.client import IrdClient
+    from ird_ros.graph import DEFAULT_NODES
+    from ird_ros.launch import GraphLauncher
+
+    nodes = [*DEFAULT_NODES, "designer"] if args.queries else None
+    with GraphLauncher(nodes=nodes, params=setup.params, record_dir=setup.run_dir / "bag", private_domain=True,
+                       output="files", log_dir=setup.run_dir / "logs") as graph:
+        ready = graph.wait_ready(timeout=120)
+        print(graph.status_table(), flush=True)
+        print(f"graph ready in {max(ready.values()):.1f} s (domain {graph.domain_id})\n", flush=True)
+        if args.queries and args.designer == "web":
+            print(f"designer web page: {web_url(graph.output('designer', last=200), args.port)}\n"
+                  "  (open it in a browser and answer each question; Ctrl-C stops the demo)\n", flush=True)
+        with IrdClient(graph.domain_id, node_name="ird_demo") as ird:
+            Mission(ird, args, setup.spec, setup.inst.test_labels, results).run()
+
+
+# --------------------------------------------------------------------------- the report
+
+
+def report_mission(args: argparse.Namespace, setup: Setup, results: Results) -> list[Path]:
+    """The mission picture and table, and with questions the rounds' table and picture."""
+    inst, outcomes, pictures = setup.inst, results.outcomes, []
+    if outcomes:
+        pictures.append(setup.run_dir / "mission.png")
+        save_mission_figure(pictures[-1], inst.train_labels, inst.test_labels,
+                            {o.label: o.cells for o in outcomes}, risk_map=results.risk,
+                            title=f"{setup.scene}, seed {args.seed}: literal proxy vs IRD",
+                            train_start=inst.train_start, test_start=inst.test_start)
+        print("\nMission results (from Rob's /rob/status):")
+        print(f"  {'plan':<18} {'touched lava':>12} {'reached target':>15} {'true return':>12}")
+        for o in outcomes:
+            print(f"  {o.label:<18} {str(o.touched_lava):>12} {str(o.reached_target):>15} {o.true_return:>12.2f}")
+    if args.queries and len(outcomes) == 2:
+        literal, before = outcomes
+        print(f"\nQuestions to the {args.designer} designer ({len(results.rounds)} answered; Rob's /rob/status, "
+              "gold from the world's terrain):")
+        print(rounds_table(literal, before, results.rounds))
+        pictures.append(setup.run_dir / "rounds.png")
+        save_rounds_figure(pictures[-1], inst.test_labels, inst.test_start, literal, before, results.risk,
+                           results.rounds,
+                           title=f"{setup.scene}, seed {args.seed}: IRD plan before and after each "
+                                 f"answer of the {args.designer} designer")
+    return pictures
+
+
+def report_bag(setup: Setup) -> None:
+    """The topics the recorder's bag holds, and its plots."""
+    from ird_ros.bags.analysis import analyze
+
+    bag_dir = setup.run_dir / "bag"
+    if bag_dir.is_dir():
+        summary = analyze(bag_dir, out_dir=setup.run_dir / "bag_plots")
+        recorded = sorted((t["topic"], t["count"]) for t in summary["topics"])
+        print(f"\nBag {bag_dir}: " + ", ".join(f"{topic} {count}" for topic, count in recorded))
+
+
+# --------------------------------------------------------------------------- main
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The mission: set up, start the survey, run the graph and its client, report. Exit code 0,
+    1 if the graph did not start, 2 for an unreadable ``--world``, 130 after Ctrl-C."""
+    args = parse_args(argv)
+    from rclpy.executors import ExternalShutdownException  # after --help: works before the venv is complete
+
+    from ird_ros.launch import LaunchError
+
+    try:
+        spec, scene = mission_spec(args)
+    except ValueError as exc:
+        print(f"[demo] --world: {exc}", file=sys.stderr)
+        return 2
+    setup = prepare(args, spec, scene)
+    t_start = time.monotonic()
+    print_header(args, setup)
+    background = Survey(None if args.no_survey else spec)
+    results = Results()
+    interrupted = False
+    try:
+        run_graph(args, setup, results)
+    except LaunchError as exc:  # a node that never got ready: its log says why
+        print(f"\n[demo] the graph did not start: {exc}\nnode logs: {setup.run_dir / 'logs'}", flush=True)
+        background.cancel()
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        interrupted = True
+        print("\n[demo] stopped by Ctrl-C: the graph was stopped and the bag closed.", flush=True)
+        background.cancel()
+    pictures = report_mission(args, setup, results)
+    report_bag(setup)
+    background.report(scene, args.method)
+    print("\n" + "\n".join(f"picture: {p}" for p in pictures))
+    print(f"bag:     {setup.run_dir / 'bag'}\ntotal time {time.monotonic() - t_start:.0f} s")
+    return 130 if interrupted else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

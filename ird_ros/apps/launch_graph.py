@@ -1,0 +1,206 @@
+"""Start the IRD ROS graph (one process per node), wait until it is ready, supervise it.
+
+    .venv/bin/python scripts/launch_graph.py [--nodes world,perception,...] [--params FILE] [--world FILE]
+        [--record DIR] [--domain-id N | --private-domain] [--respawn NODE,...]
+        [--timeout S] [--run-for S] [--output prefix|quiet|files] [--log-dir DIR] [--dds-network]
+
+Prints each node's output as ``[node] line`` (``--output prefix``, the default), then a
+status table (node, pid, state, ready after X s) once every node is ready, and reports a
+node that dies (exit code or signal) and its restart when it is in --respawn (or in the
+params file's ``launcher: ros__parameters: respawn: [...]``); a node that keeps dying is
+given up after --respawn-max-retries restarts. Ctrl-C (SIGINT) or SIGTERM stops everything
+within 5 s: SIGINT, then SIGTERM, then SIGKILL to each node's process group; the recorder
+(--record) is stopped last, so the bag is complete. Children are also told to stop (SIGTERM,
+via PR_SET_PDEATHSIG) if this launcher is killed with SIGKILL.
+
+--private-domain leases a free ROS_DOMAIN_ID in 0..101 and sets a private ROS_LOG_DIR; the
+chosen id is printed (``[launcher] ROS_DOMAIN_ID=N``) for clients to use. Without it,
+--domain-id or the inherited ROS_DOMAIN_ID (default 0) is used; either must be in 0..101
+(higher IDs put the DDS ports into Linux's ephemeral port range).
+
+DDS transport: loopback only by default (the nodes and the launcher load
+msgs_config/dds/fastdds_localhost.xml, so no socket binds outside 127.0.0.0/8 and nothing
+off this machine can reach the graph). --dds-network (or IRD_DDS_NETWORK=1) is for a graph
+spread over several machines: no profile, ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET. A
+FASTRTPS_DEFAULT_PROFILES_FILE of your own is kept (see ird_ros/graph/domains.py).
+
+--world FILE (a world file, e.g. worlds/figure1.yaml): the world node publishes it instead of
+a generated Lavaland and perception takes its classifier from it (both get ``-p
+world_file:=FILE`` after the params file). The file is loaded here first: a bad file is
+reported (file, key, value) with exit status 2 before any node starts.
+
+Exit status: 0 after a requested stop (signal or --run-for); 1 if the graph could not start,
+did not become ready within --timeout (what is missing is printed) or every node died; 2 for
+bad arguments. See ird_ros/launch/launcher.py for how readiness is decided.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from ird_core.worlds.world_file import load_world_file
+from ird_ros.graph import DEFAULT_NODES, NODES, NodeSpec
+from ird_ros.graph.domains import DDS_NETWORK_VAR
+from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
+from ird_ros.nodes.world import with_world_file
+
+__all__ = ["main", "build_parser"]
+
+
+class _StopRequested(BaseException):
+    """Raised by the SIGINT/SIGTERM handler to leave the wait for the graph."""
+
+
+class _StopSignals:
+    """SIGINT and SIGTERM raise ``_StopRequested`` once, and not after ``stopping`` is set.
+
+    SIGINT is set explicitly: a launcher started with ``&`` from a non-interactive shell has it ignored.
+    """
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self.stopping = False
+        signal.signal(signal.SIGINT, self._handle)
+        signal.signal(signal.SIGTERM, self._handle)
+
+    def _handle(self, signum: int, _frame: object) -> None:
+        if self.stopping:
+            return
+        self.stopping = True
+        self.received = signal.Signals(signum).name
+        raise _StopRequested()
+
+
+def _csv(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line (every option documented in ``--help``)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    parser.add_argument("--nodes", type=_csv, default=None, help=f"comma-separated (default: {','.join(DEFAULT_NODES)})")
+    parser.add_argument("--world", type=Path, default=None, metavar="FILE",
+                        help="world file (YAML) the world node publishes instead of generating Lavaland")
+    parser.add_argument("--params", type=Path, default=None, help="ROS params file (default: msgs_config/params/graph.yaml)")
+    parser.add_argument("--record", type=Path, default=None, metavar="DIR", help="record a bag (MCAP) into this new folder")
+    parser.add_argument("--record-topics", type=_csv, default=None, help="topics to record (default: params file, else all)")
+    dom = parser.add_mutually_exclusive_group()
+    dom.add_argument("--domain-id", type=int, default=None, help="ROS domain of the graph, 0..101")
+    dom.add_argument("--private-domain", action="store_true",
+                     help="lease a free ROS domain in 0..101 (printed as ROS_DOMAIN_ID=N) with a private ROS_LOG_DIR")
+    parser.add_argument("--respawn", type=_csv, default=[], help="nodes to restart when they die")
+    parser.add_argument("--respawn-delay", type=float, default=None, help="seconds before a restart (default: params file, else 1.0)")
+    parser.add_argument("--respawn-max-retries", type=int, default=None, metavar="N",
+                        help="restarts of one node before giving up on it, -1 for no limit (default: params file, else 5)")
+    parser.add_argument("--timeout", type=float, default=90.0, help="seconds to wait for readiness (default 90)")
+    parser.add_argument("--run-for", type=float, default=None, help="stop after this many seconds of being ready")
+    parser.add_argument("--output", choices=[m.value for m in OutputMode], default=OutputMode.PREFIX.value,
+                        help="nodes' output: prefix (printed as [node] line), quiet (shown on errors), "
+                             "files (<log-dir>/<node>.log)")
+    parser.add_argument("--log-dir", type=Path, default=None, help="ROS_LOG_DIR of the nodes (and logs for --output files)")
+    parser.add_argument("--dds-network", action="store_true",
+                        help="DDS on every interface, for multi-machine use (default: loopback only)")
+    parser.add_argument("--node-table", default=None, metavar="MODULE:ATTR",
+                        help="another node table (a list of ird_ros.graph.NodeSpec), e.g. for tests' stand-ins")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    signals = _StopSignals()
+    if args.dds_network:
+        os.environ[DDS_NETWORK_VAR] = "1"
+    try:
+        graph = _make_launcher(args)
+    except (LaunchError, ValueError) as exc:
+        _error(str(exc))
+        return 2
+    return _run(graph, args, signals)
+
+
+def _make_launcher(args: argparse.Namespace) -> GraphLauncher:
+    """The launcher the options ask for; ``ValueError`` or ``LaunchError`` for bad ones."""
+    return GraphLauncher(
+        specs=_node_table(args), nodes=args.nodes, params=args.params, record_dir=args.record,
+        record_topics=args.record_topics, domain_id=args.domain_id, private_domain=args.private_domain,
+        respawn=args.respawn, respawn_delay=args.respawn_delay, respawn_max_retries=args.respawn_max_retries,
+        output=args.output, log_dir=args.log_dir)
+
+
+def _node_table(args: argparse.Namespace) -> list[NodeSpec] | None:
+    """``--node-table`` (default: the graph's), with ``--world``'s file, which is checked first."""
+    specs: list[NodeSpec] | None = None
+    if args.node_table:
+        module, _, attr = args.node_table.partition(":")
+        specs = list(getattr(importlib.import_module(module), attr or "SPECS"))
+    if args.world is None:
+        return specs
+    try:
+        load_world_file(args.world)
+    except ValueError as exc:
+        raise ValueError(f"--world: {exc}") from None
+    return with_world_file(specs if specs is not None else NODES, args.world)
+
+
+def _run(graph: GraphLauncher, args: argparse.Namespace, signals: _StopSignals) -> int:
+    """Start the graph, wait for it, supervise it until a stop; always stop it. The exit status."""
+    t_start = time.monotonic()
+    try:
+        code = _start_and_wait(graph, args.timeout, t_start)
+        return code if code else _supervise(graph, args.run_for)
+    except _StopRequested:
+        print(f"[launcher] {signals.received} received: stopping", flush=True)
+        return 0
+    finally:
+        signals.stopping = True  # a later signal is ignored: the stop below is under way
+        codes = graph.stop()
+        print(f"[launcher] stopped {len(codes)} process(es) in {graph.stop_duration or 0.0:.2f} s", flush=True)
+        print(graph.status_table(), flush=True)
+
+
+def _start_and_wait(graph: GraphLauncher, timeout: float, t_start: float) -> int:
+    """Start the graph and wait until it is ready: 0, or 1 (the error printed)."""
+    try:
+        graph.start()
+    except LaunchError as exc:
+        _error(str(exc))
+        return 1
+    print(f"[launcher] ROS_DOMAIN_ID={graph.domain_id} ROS_LOG_DIR={graph.env['ROS_LOG_DIR']}", flush=True)
+    for name, pid in graph.pids().items():
+        print(f"[launcher] started {name} pid {pid}", flush=True)
+    try:
+        graph.wait_ready(timeout)
+    except LaunchError as exc:
+        _error(str(exc))
+        print(graph.status_table(), flush=True)
+        return 1
+    # the table first: a line "graph ready after" means everything above it is out
+    print(graph.status_table(), flush=True)
+    print(f"[launcher] graph ready after {time.monotonic() - t_start:.2f} s", flush=True)
+    return 0
+
+
+def _supervise(graph: GraphLauncher, run_for: float | None) -> int:
+    """Wait until every node has exited (1) or ``run_for`` seconds passed (0)."""
+    wake = threading.Event()
+    end = None if run_for is None else time.monotonic() + run_for
+    while True:
+        if graph.all_exited():
+            print("[launcher] every node has exited", file=sys.stderr, flush=True)
+            return 1
+        if end is not None and time.monotonic() >= end:
+            print(f"[launcher] --run-for {run_for:g} s elapsed", flush=True)
+            return 0
+        wake.wait(0.2)
+
+
+def _error(text: str) -> None:
+    print(f"[launcher] error: {text}", file=sys.stderr, flush=True)
