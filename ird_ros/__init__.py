@@ -10,7 +10,8 @@ Sub-packages, by layer:
   the graph; ``client``: one client of the graph for scripts and tests; ``apps``: the scripts;
 - ``bags`` (recorded bags) and ``web`` (the designer's page): ROS-free.
 
-Two ROS-free modules serve every layer: ``geometry`` (map frame <-> grid cells) and ``stamps``
-(header stamps as keys, nanoseconds, text). ``testing`` adds what only tests use. This package
+Three ROS-free modules serve every layer: ``geometry`` (map frame <-> grid cells), ``stamps``
+(header stamps as keys, nanoseconds, text) and ``waits`` (waiting on the graph without sleeps,
+given an rclpy node). ``testing`` adds what only tests use. This package
 imports nothing, so ``import ird_ros.geometry`` works on a machine without ROS.
 """

@@ -2,7 +2,7 @@
 
 Typical use (see ``tests/conftest.py`` for the fixtures built on this)::
 
-    lease = lease_domain()                      # exclusive ROS_DOMAIN_ID in 0..101
+    lease = lease_domain()                      # ird_ros.graph.domains: a ROS_DOMAIN_ID in 0..101
     with spawn_node_process(["-m", "ird_ros.nodes.world"], domain=lease) as proc, \
             IrdClient(lease.domain_id, processes=[proc]) as ird:
         ird.wait_ready(20.0, services=(names.SRV_GENERATE,))
@@ -12,9 +12,9 @@ Nothing here sleeps: every wait spins a node until a condition holds or a deadli
 then raises ``TimeoutError`` that includes the output of the helper processes.
 
 This module adds the helper processes (``NodeProcess``, ``spawn_node_process``, ``running_nodes``)
-and is for tests only: no production module imports it. For the tests' convenience it also
-offers the domain helpers of ``ird_ros.graph.domains`` and the waits of ``ird_ros.client.waits``
-(the client of the graph itself is ``ird_ros.client.IrdClient``).
+and is for tests only: no production module imports it. Domains come from
+``ird_ros.graph.domains``, waits from ``ird_ros.waits``, and the client of the graph is
+``ird_ros.client.IrdClient``.
 
 rclpy is imported lazily (when a test makes a context or a node), so ROS-free tests never load it.
 """
@@ -34,43 +34,10 @@ import time
 from pathlib import Path
 from typing import Iterator, Mapping, Sequence
 
-from ird_ros.client.waits import (
-    call_service,
-    receive_messages,
-    spin_until,
-    wait_for_node,
-    wait_for_publishers,
-    wait_for_service,
-    wait_for_subscribers,
-)
-from ird_ros.graph.domains import (
-    DOMAIN_ID_MAX,
-    DOMAIN_LOCK_DIR,
-    DomainLease,
-    lease_domain,
-    ros_context,
-    ros_env,
-)
+from ird_ros.graph.domains import DomainLease, ros_env
 from ird_ros.launch.process_groups import child_preexec
 
-__all__ = [
-    "running_nodes",
-    "DOMAIN_ID_MAX",
-    "DOMAIN_LOCK_DIR",
-    "DomainLease",
-    "lease_domain",
-    "ros_env",
-    "ros_context",
-    "NodeProcess",
-    "spawn_node_process",
-    "spin_until",
-    "wait_for_subscribers",
-    "wait_for_publishers",
-    "wait_for_service",
-    "wait_for_node",
-    "call_service",
-    "receive_messages",
-]
+__all__ = ["running_nodes", "NodeProcess", "spawn_node_process"]
 
 # --------------------------------------------------------------------------- processes
 

@@ -23,10 +23,9 @@ import time
 
 import numpy as np
 
-from ird_core import planning
+from ird_core import planning, posterior
 from ird_core.experiments import trials as experiments
 from ird_core.planning import trajectory_solver as TS
-from ird_core import posterior
 from ird_core.worlds import lavaland
 
 CONDITIONS = ("side_effects", "reward_hacking", "latent_raw", "latent_classifier")

@@ -18,8 +18,7 @@ from typing import Any, Iterator
 
 import pytest
 
-from ird_ros.graph.domains import dds_env
-from ird_ros.testing import DomainLease, lease_domain, ros_context
+from ird_ros.graph.domains import DomainLease, dds_env, lease_domain, ros_context
 
 _SESSION: dict[str, Any] = {}
 

@@ -22,7 +22,6 @@ from ird_ros.bags.analysis import analyze, extract_missions
 from ird_ros.bags.missions import terrain_from_msg
 from ird_ros.bags.storage import make_typestore, read_messages, summarize
 
-
 T0 = 1_700_000_000_000_000_000  # ns
 SEC = 1_000_000_000
 RES = 0.5  # m per cell

@@ -222,8 +222,7 @@ def test_factorial_granularities_share_the_first_samples():
     sample set the per-step objective sum_t min_i q_i is at most min_i sum_t q_i on every path,
     so the trajectory optimum is at least the per-step optimum and at least the per-step path's
     trajectory objective; each plan's objective is its objective on exactly those samples."""
-    from ird_core import planning
-    from ird_core import posterior
+    from ird_core import planning, posterior
     from ird_core.worlds import lavaland
 
     spec = ex.TrialSpec("latent_raw", 2, **SMALL_MAP)

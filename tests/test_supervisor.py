@@ -287,7 +287,7 @@ def test_bad_arguments_name_the_field() -> None:
 
 def test_supervisor_imports_no_ros() -> None:
     probe = ("import json, sys, ird_ros.launch.supervisor, ird_ros.launch.plan, ird_ros.graph.domains, "
-             "ird_ros.client.waits; "
+             "ird_ros.waits; "
              "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'ird_msgs'))))")
     out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                          capture_output=True, text=True, check=True, timeout=60)

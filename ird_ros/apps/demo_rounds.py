@@ -21,8 +21,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ird_core.render import draw_path, draw_terrain
-from ird_core.worlds.terrain import TERRAIN_COLORS
-from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
+from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES, Terrain
 
 __all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "save_rounds_figure",
            "PANEL_INCHES"]

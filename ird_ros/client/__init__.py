@@ -1,5 +1,5 @@
 """One client of a running IRD graph (docs/spec.md section 6): :class:`IrdClient`, its typed results,
-request builders, and the waits it is built on (discovery, messages, services; no sleeps)."""
+and request builders, built on ``ird_ros.waits`` (discovery, messages, services; no sleeps)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ from ird_ros.client.results import (
     RobDrive,
     WorldMessages,
     classify_answer,
-    stamp_key,
 )
 
 __all__ = [
@@ -39,7 +38,6 @@ __all__ = [
     "Query",
     "RobDrive",
     "WorldMessages",
-    "stamp_key",
     "infer_request",
     "plan_request",
     "query_request",

@@ -16,7 +16,7 @@ Invariants:
 - Every service call returns a :class:`~ird_ros.client.results.CallResult` (status DONE, BUSY,
   REFUSED or FAILED, the decoded payload, the field a refusal names, the raw response); a
   refusal is an answer, never an exception.
-- Every wait spins this client's node (``ird_ros.client.waits``, no sleeps). A wait that runs out
+- Every wait spins this client's node (``ird_ros.waits``, no sleeps). A wait that runs out
   raises :class:`ClientTimeout`, or :class:`GraphNotFound` when nothing in the domain offers the
   service or publishes the topic; both name the ROS_DOMAIN_ID searched and how to change it.
 - Service clients use the deep service QoS (``ird_ros.runtime.offload.service_qos``), so a burst
@@ -34,7 +34,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
-from typing import Any, Callable, Generic, Iterable, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Generic, Iterable, Sequence, TypeVar
 
 import numpy as np
 
@@ -47,12 +47,16 @@ from ird_ros.client.results import (
     RobDrive,
     WorldMessages,
     classify_answer,
-    stamp_key,
 )
-from ird_ros.client.waits import WatchedProcess, spin_until
+from ird_ros.waits import WatchedProcess, spin_until
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, ros_context
 from ird_ros.runtime.offload import service_qos
+from ird_ros.stamps import stamp_key
+
+if TYPE_CHECKING:
+    from ird_msgs.msg import ProxyReward, QueryRecord
+    from ird_msgs.srv import InferReward, PlanPath, ProposeQuery
 
 __all__ = ["IrdClient", "PendingCall", "ClientTimeout", "GraphNotFound", "ALL_SERVICES", "domain_hint"]
 
@@ -251,11 +255,11 @@ class IrdClient:
             raise kind(f"{exc}\n{domain_hint(self.domain_id)}") from None
         return received[-1]
 
-    def proxy(self, *, timeout: float = 60.0) -> Any:
+    def proxy(self, *, timeout: float = 60.0) -> "ProxyReward":
         """The designer's proxy reward (``/world/proxy``, an ``ird_msgs/ProxyReward``)."""
         return self.latest(names.TOPIC_PROXY, timeout=timeout)
 
-    def world_infer_request(self, *, timeout: float = 60.0) -> Any:
+    def world_infer_request(self, *, timeout: float = 60.0) -> "InferReward.Request":
         """The ``/ird/infer`` request the world poses (every training world of a world file)."""
         return self.latest(names.TOPIC_INFER_REQUEST, timeout=timeout)
 
@@ -318,23 +322,23 @@ class IrdClient:
         request = GenerateWorld.Request(condition=condition, seed=int(seed))
         return self.call(names.SRV_GENERATE, request, decode=lambda r: str(r.message), timeout=timeout)
 
-    def infer_async(self, request: Any, *, timeout: float = 60.0) -> PendingCall[conv.PosteriorData]:
+    def infer_async(self, request: "InferReward.Request", *, timeout: float = 60.0) -> PendingCall[conv.PosteriorData]:
         """``/ird/infer`` without waiting for the answer (bursts)."""
         return self.call_async(names.SRV_INFER, request, decode=_decode_posterior, timeout=timeout)
 
-    def infer(self, request: Any, *, timeout: float = 300.0) -> CallResult[conv.PosteriorData]:
+    def infer(self, request: "InferReward.Request", *, timeout: float = 300.0) -> CallResult[conv.PosteriorData]:
         """``/ird/infer``: the IRD posterior (docs/spec.md section 3), samples as (K, d) numpy."""
         return self.call(names.SRV_INFER, request, decode=_decode_posterior, timeout=timeout)
 
-    def plan_async(self, request: Any, *, timeout: float = 60.0) -> PendingCall[Plan]:
+    def plan_async(self, request: "PlanPath.Request", *, timeout: float = 60.0) -> PendingCall[Plan]:
         """``/ird/plan`` without waiting for the answer."""
         return self.call_async(names.SRV_PLAN, request, decode=_decode_plan, timeout=timeout)
 
-    def plan(self, request: Any, *, timeout: float = 300.0) -> CallResult[Plan]:
+    def plan(self, request: "PlanPath.Request", *, timeout: float = 300.0) -> CallResult[Plan]:
         """``/ird/plan``: a literal or risk-averse path (docs/spec.md section 4); Rob drives it."""
         return self.call(names.SRV_PLAN, request, decode=_decode_plan, timeout=timeout)
 
-    def propose_query(self, request: Any, *, timeout: float = 300.0) -> CallResult[Query]:
+    def propose_query(self, request: "ProposeQuery.Request", *, timeout: float = 300.0) -> CallResult[Query]:
         """``/ird/query``: a question to the designer (docs/spec.md section 7). The options are read
         as cells on the request's map, or (an empty map) on the latest ``/world/test_features``."""
         if not request.map.layers:
@@ -396,7 +400,7 @@ class IrdClient:
         self.spin_until(lambda: bool(finals()), timeout=timeout, what=f"Rob finishing {label} plan")
         return RobDrive(tuple(s for s in statuses if stamp_key(s.plan_stamp) == key), finals()[-1])
 
-    def wait_for_answer(self, query_id: int, *, timeout: float = 300.0) -> Any:
+    def wait_for_answer(self, query_id: int, *, timeout: float = 300.0) -> "QueryRecord":
         """The ``answered`` record of query ``query_id`` on ``/ird/queries`` (an ``ird_msgs/QueryRecord``)."""
         records = self.received(names.TOPIC_QUERIES)
 
@@ -406,7 +410,7 @@ class IrdClient:
         self.spin_until(lambda: bool(answered()), timeout=timeout, what=f"the answer to query {query_id}")
         return answered()[0]
 
-    def posterior_of(self, record: Any, *, timeout: float = 60.0) -> conv.PosteriorData:
+    def posterior_of(self, record: "QueryRecord", *, timeout: float = 60.0) -> conv.PosteriorData:
         """The posterior published on ``/ird/posterior`` with ``record``'s stamp (the re-sampling of an answer)."""
         posteriors = self.received(names.TOPIC_POSTERIOR)
         key = stamp_key(record.header.stamp)

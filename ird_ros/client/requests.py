@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-
 if TYPE_CHECKING:
     from ird_msgs.msg import FeatureGrid
     from ird_msgs.srv import InferReward, PlanPath, ProposeQuery

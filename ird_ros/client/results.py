@@ -26,6 +26,7 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 
 from ird_ros.runtime.offload import BUSY_PREFIX
+from ird_ros.stamps import stamp_key
 
 __all__ = [
     "CallStatus",
@@ -36,7 +37,6 @@ __all__ = [
     "Query",
     "RobDrive",
     "WorldMessages",
-    "stamp_key",
 ]
 
 T = TypeVar("T")
@@ -169,7 +169,3 @@ class WorldMessages:
         """The generation's stamp as (sec, nanosec)."""
         return stamp_key(self.proxy.header.stamp)
 
-
-def stamp_key(stamp: Any) -> tuple[int, int]:
-    """A ``builtin_interfaces/Time`` as a comparable (sec, nanosec) pair."""
-    return int(stamp.sec), int(stamp.nanosec)

@@ -72,8 +72,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import String
 
-from ird_ros.bags.storage import register_type
 from ird_ros.bags.repair import checkpoint, close_writer
+from ird_ros.bags.storage import register_type
 from ird_ros.graph import names
 from ird_ros.runtime.node_params import Param, declare_all
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
-from ird_core import mdp
-from ird_core import posterior
-from ird_core.worlds import evaluation, lavaland as L
+from ird_core import mdp, posterior
+from ird_core.worlds import evaluation
+from ird_core.worlds import lavaland as L
 from ird_core.worlds.observations import (
     TerrainClassifier,
     fit_classifier,

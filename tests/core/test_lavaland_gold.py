@@ -13,7 +13,8 @@ import pytest
 from matplotlib.colors import to_rgb
 
 from ird_core import render
-from ird_core.worlds import evaluation, lavaland as L
+from ird_core.worlds import evaluation
+from ird_core.worlds import lavaland as L
 from ird_core.worlds.terrain import TERRAIN_COLORS, TEST_MAP, Terrain, place_gold, sample_terrain, terrain_fractions
 
 SEEDS = range(12)

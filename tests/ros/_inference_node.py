@@ -7,7 +7,8 @@ import contextlib
 from pathlib import Path
 from typing import Iterator
 
-from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -25,7 +25,8 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros.client import CallStatus, IrdClient, infer_request
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, NodeProcess, spawn_node_process
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -21,10 +21,9 @@ import pytest
 from ird_msgs.msg import ProxyReward, TerrainGrid
 from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.graph.domains import DDS_PROFILE, DDS_PROFILE_VAR, dds_env
+from ird_ros.graph.domains import DDS_PROFILE, DDS_PROFILE_VAR, DomainLease, dds_env, lease_domain
 from ird_ros.launch import GraphLauncher
-from ird_ros.graph.domains import lease_domain
-from ird_ros.testing import DomainLease, NodeProcess, running_nodes, spawn_node_process
+from ird_ros.testing import NodeProcess, running_nodes, spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -20,7 +20,8 @@ from ird_core.worlds import evaluation
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, NodeProcess, running_nodes, spawn_node_process
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess, running_nodes, spawn_node_process
 
 DESIGNER_BETA, DESIGNER_SEED = 2.0, 9
 DESIGNER_ARGS = ["-p", "mode:=simulated", "-p", f"beta:={DESIGNER_BETA}", "-p", f"seed:={DESIGNER_SEED}"]

@@ -18,7 +18,8 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, spawn_node_process
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import spawn_node_process
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

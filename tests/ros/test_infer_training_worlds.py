@@ -20,8 +20,9 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros.client import IrdClient
 from ird_ros.graph import names
+from ird_ros.graph.domains import DomainLease
 from ird_ros.jobs.inference import ExtraWorld, InferenceJob, job_observations
-from ird_ros.testing import DomainLease, NodeProcess
+from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 

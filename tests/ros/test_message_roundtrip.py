@@ -29,16 +29,9 @@ from _roundtrip_cases import (
 )
 
 from ird_ros import conversions as conv
-from ird_ros.testing import (
-    DomainLease,
-    NodeProcess,
-    call_service,
-    spawn_node_process,
-    spin_until,
-    wait_for_publishers,
-    wait_for_service,
-    wait_for_subscribers,
-)
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess, spawn_node_process
+from ird_ros.waits import call_service, spin_until, wait_for_publishers, wait_for_service, wait_for_subscribers
 
 ECHO_SCRIPT = Path(__file__).with_name("_echo_node.py")
 

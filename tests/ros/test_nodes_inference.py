@@ -23,7 +23,9 @@ from ird_msgs.srv import InferReward
 from ird_ros import conversions as conv
 from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spin_until, wait_for_service
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess
+from ird_ros.waits import call_service, spin_until, wait_for_service
 
 SIZE, HORIZON = 5, 6
 

@@ -21,7 +21,8 @@ from ird_ros import conversions as conv
 from ird_ros import graph
 from ird_ros.client import IrdClient, infer_request
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, wait_for_node
+from ird_ros.graph.domains import DomainLease
+from ird_ros.waits import wait_for_node
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

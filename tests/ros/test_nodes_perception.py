@@ -14,8 +14,10 @@ from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.client import IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, NodeProcess, spin_until
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess
 from ird_ros.testing import running_nodes as running
+from ird_ros.waits import spin_until
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -13,23 +13,18 @@ import pytest
 from nav_msgs.msg import OccupancyGrid
 from nav_msgs.msg import Path as PathMsg
 
-from ird_core import planning
+from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
-from ird_core import posterior
 from ird_core.worlds import lavaland
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
 from ird_ros.client import CallStatus, IrdClient
 from ird_ros.graph import names
-from ird_ros.testing import (
-    DomainLease,
-    NodeProcess,
-    spawn_node_process,
-    spin_until,
-    wait_for_subscribers,
-)
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess, spawn_node_process
 from ird_ros.testing import running_nodes as running
+from ird_ros.waits import spin_until, wait_for_subscribers
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

@@ -16,7 +16,8 @@ from ird_msgs.srv import ProposeQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.client import CallStatus
-from ird_ros.testing import DomainLease, running_nodes
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import running_nodes
 
 ANSWER_BETA = 1.0  # the inference node's answer_beta (graph.yaml)
 

@@ -15,14 +15,10 @@ from ird_core.worlds.terrain import Terrain
 from ird_msgs.msg import PlanInfo, RobStatus
 from ird_ros import conversions as conv
 from ird_ros.graph import names
-from ird_ros.testing import (
-    DomainLease,
-    NodeProcess,
-    spin_until,
-    wait_for_publishers,
-    wait_for_subscribers,
-)
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import NodeProcess
 from ird_ros.testing import running_nodes as running
+from ird_ros.waits import spin_until, wait_for_publishers, wait_for_subscribers
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

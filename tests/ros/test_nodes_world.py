@@ -15,8 +15,9 @@ from ird_msgs.msg import ProxyReward
 from ird_ros import conversions as conv
 from ird_ros.client import CallResult, CallStatus, IrdClient
 from ird_ros.graph import names
-from ird_ros.graph.domains import lease_domain
-from ird_ros.testing import DomainLease, NodeProcess, call_service, spawn_node_process, spin_until, wait_for_service
+from ird_ros.graph.domains import DomainLease, lease_domain
+from ird_ros.testing import NodeProcess, spawn_node_process
+from ird_ros.waits import call_service, spin_until, wait_for_service
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")

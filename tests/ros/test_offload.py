@@ -16,7 +16,7 @@ from typing import Any, Callable, Iterator
 import pytest
 
 from ird_ros.runtime.offload import Offload, OffloadError
-from ird_ros.testing import spin_until
+from ird_ros.waits import spin_until
 
 
 class _Pool:

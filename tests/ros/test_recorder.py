@@ -25,7 +25,9 @@ from rclpy.duration import Duration
 from ird_ros import conversions as conv
 from ird_ros.bags import missions, storage
 from ird_ros.graph import names
-from ird_ros.testing import DomainLease, spawn_node_process, wait_for_subscribers
+from ird_ros.graph.domains import DomainLease
+from ird_ros.testing import spawn_node_process
+from ird_ros.waits import wait_for_subscribers
 
 N_STATUS = 37
 N_ODOM = 23

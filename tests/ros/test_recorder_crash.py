@@ -25,8 +25,10 @@ from rosbags.typesys import Stores, get_typestore
 
 from ird_ros.bags.repair import MAGIC
 from ird_ros.graph import names
+from ird_ros.graph.domains import DomainLease
 from ird_ros.nodes.recorder import STATUS_TOPIC
-from ird_ros.testing import DomainLease, spawn_node_process, spin_until, wait_for_subscribers
+from ird_ros.testing import spawn_node_process
+from ird_ros.waits import spin_until, wait_for_subscribers
 
 ROOT = Path(__file__).resolve().parents[2]
 TOPIC = "/crash_test/points"

@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 import yaml
 
-from ird_core import planning
+from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
-from ird_core import posterior
 from ird_core.worlds import evaluation, lavaland, world_file
 from ird_core.worlds.terrain import Terrain
 
@@ -118,33 +117,27 @@ def test_perception_classifies_a_gaussian_file_world(condition: str, tmp_path: P
     """A Gaussian file world (an exported latent instance): perception, given the same
     world_file, uses the file's classifier (latent_classifier: /terrain/features = the proxy's
     features) or one fitted on the file's observation model (seed instance.seed)."""
-    import rclpy
-
     from ird_core.worlds.observations import fit_classifier
-    from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
     from ird_ros import conversions as conv
+    from ird_ros.client import IrdClient
     from ird_ros.graph import names
-    from ird_ros.testing import lease_domain, ros_context, running_nodes, spin_until
+    from ird_ros.graph.domains import lease_domain
+    from ird_ros.testing import running_nodes
 
     generated = lavaland.make_instance(condition, 5, size=(6, 7), horizon=8, obs_dim=8)
     path = world_file.export_instance(generated, tmp_path, "gauss", obs_dim=8)
     inst = world_file.load_world(path)
     params = str(REPO / "msgs_config" / "params" / "graph.yaml")
     args = ["--ros-args", "--params-file", params, "-p", f"world_file:={path}"]
-    with lease_domain() as lease, ros_context(lease) as ctx, \
+    with lease_domain() as lease, \
             running_nodes(lease, ("world", ["-m", "ird_ros.nodes.world", *args]),
-                          ("perception", ["-m", "ird_ros.nodes.perception", *args])) as procs:
-        node = rclpy.create_node("gauss_probe", context=ctx)
-        try:
-            got: dict[str, list] = {"proxy": [], "classes": [], "features": []}
-            qos = names.latched_qos()
-            node.create_subscription(ProxyReward, names.TOPIC_PROXY, got["proxy"].append, qos)
-            node.create_subscription(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, got["classes"].append, qos)
-            node.create_subscription(FeatureGrid, names.TOPIC_TERRAIN_FEATURES, got["features"].append, qos)
-            spin_until(node, lambda: all(got.values()), timeout=60.0, what="perception of the file world",
-                       processes=procs)
-        finally:
-            node.destroy_node()
+                          ("perception", ["-m", "ird_ros.nodes.perception", *args])) as procs, \
+            IrdClient(lease.domain_id, node_name="gauss_probe", processes=procs) as ird:
+        topics = {"proxy": names.TOPIC_PROXY, "classes": names.TOPIC_TERRAIN_CLASSES,
+                  "features": names.TOPIC_TERRAIN_FEATURES}
+        ird.subscribe(*topics.values())
+        got = {key: ird.received(topic) for key, topic in topics.items()}
+        ird.spin_until(lambda: all(got.values()), timeout=60.0, what="perception of the file world")
     assert got["proxy"][-1].condition == lavaland.FILE_CONDITION
     obs = inst.test_features.astype(np.float32).astype(np.float64)
     clf = inst.classifier or fit_classifier(inst.observation_model, np.random.default_rng(inst.seed))
