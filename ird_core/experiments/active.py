@@ -50,7 +50,7 @@ from ird_core import mdp, planning, posterior
 from ird_core.designer import queries
 from ird_core.experiments import statistics
 from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
-from ird_core.vocabulary import STRATEGIES
+from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland
 
 __all__ = [
@@ -91,7 +91,7 @@ class ActiveSpec:
     num_samples: int = _SMALL.num_samples
     beta: float = _SMALL.beta
     prior_sigma: float = _SMALL.prior_sigma
-    method: str = "maxent_z"
+    method: str = ZMethod.MAXENT_Z.value
     num_chains: int = _SMALL.num_chains
     warmup: int = _SMALL.warmup
     thin: int = _SMALL.thin
@@ -186,7 +186,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
 
     # Sample-Z's proxy counts are computed once, in the proxy's own space (latent_classifier),
     # and shared by every re-sample, like the proxy's own counts.
-    num_proxy = posterior.DEFAULT_NUM_PROXY_SAMPLES if spec.method == "sample_z" else None
+    num_proxy = posterior.DEFAULT_NUM_PROXY_SAMPLES if spec.method == ZMethod.SAMPLE_Z else None
     proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
     reference = proxy.proxy_features / (inst.train_horizon + 1)
     options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
@@ -200,7 +200,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 **options)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
-        return planning.plan_path(test, post.samples, "per_step", MAIN_BASELINE, reference).cells
+        return planning.plan_path(test, post.samples, PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
 
     first = sample([proxy], 0, None)
     first_cells = plan(first)

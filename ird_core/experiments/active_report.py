@@ -17,13 +17,14 @@ from ird_core.experiments import active
 from ird_core.experiments.parallel import describe
 from ird_core.experiments.report import RunRecord
 from ird_core.experiments.tables import cells_text, number, percent, write_csv, write_run_json
+from ird_core.vocabulary import QueryStrategy
 from ird_core.worlds.terrain import Terrain
 
 __all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "plot_condition", "write_report"]
 
-LABEL: dict[str, str] = {"info_gain": "info-gain queries", "random": "random queries", "literal": "literal",
-                         "oracle": "oracle"}
-COLOUR: dict[str, str] = {"info_gain": "#4c72b0", "random": "#dd8452", "literal": "#c44e52", "oracle": "#55a868"}
+LABEL: dict[str, str] = {QueryStrategy.INFO_GAIN: "info-gain queries", QueryStrategy.RANDOM: "random queries",
+                         "literal": "literal", "oracle": "oracle"}
+COLOUR: dict[str, str] = {QueryStrategy.INFO_GAIN: "#4c72b0", QueryStrategy.RANDOM: "#dd8452", "literal": "#c44e52", "oracle": "#55a868"}
 #: The outcome flags drawn per strategy: (name, summary field).
 OUTCOMES: tuple[tuple[str, str], ...] = (("lava", "lava_fraction"), ("target", "target_fraction"),
                                          ("gold", "gold_fraction"))
@@ -57,8 +58,8 @@ def _condition_headline(results: Sequence[active.ActiveResult], summaries: Seque
     lines = []
     one = _first_query_count(counts)
     three = 3 if 3 in counts else max(counts)
-    if one is not None and set(strategies) >= {"info_gain", "random"}:
-        mean, lo, hi, n = active.paired_difference(list(results), c, ("info_gain", one), ("random", one))
+    if one is not None and set(strategies) >= {QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM}:
+        mean, lo, hi, n = active.paired_difference(list(results), c, (QueryStrategy.INFO_GAIN, one), (QueryStrategy.RANDOM, one))
         verdict = "beats" if lo > 0 else ("is beaten by" if hi < 0 else "does not separate from")
         lines.append(f"- {c}: after {one} quer{'y' if one == 1 else 'ies'}, info-gain {verdict} random: paired "
                      f"return difference {number(mean)} [{number(lo)}, {number(hi)}] (n = {n})")
@@ -125,7 +126,7 @@ def _plot_outcomes(ax: Any, rows: list[active.ActiveSummary], strategy: str, con
         if name == "gold" and condition != "pot_of_gold":
             continue
         ax.plot(x, [getattr(s, key) for s in ss], color=TERRAIN_COLORS[Terrain[name.upper()]],
-                marker="o" if strategy == "info_gain" else "s", ls="-" if strategy == "info_gain" else ":",
+                marker="o" if strategy == QueryStrategy.INFO_GAIN else "s", ls="-" if strategy == QueryStrategy.INFO_GAIN else ":",
                 label=f"{name}, {LABEL[strategy]}")
 
 
@@ -148,7 +149,7 @@ def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], conditi
     rows = [s for s in summaries if s.condition == condition]
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), dpi=110)
     _bounds(ax, rows)
-    for strategy in ("info_gain", "random"):
+    for strategy in QueryStrategy:
         x = _plot_returns(ax, rows, strategy)
         if not x:
             continue

@@ -26,6 +26,7 @@ import numpy as np
 
 from ird_core import posterior
 from ird_core.experiments.progress import step_progress
+from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
 
@@ -124,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     with step_progress("maxent_z MCMC") as progress:
         result = posterior.sample_posterior(
-            instance.proxy_weights, lavaland.train_mdp(instance), args.beta, "maxent_z", args.samples, args.seed,
+            instance.proxy_weights, lavaland.train_mdp(instance), args.beta, ZMethod.MAXENT_Z, args.samples, args.seed,
             proxy_features=posterior.proxy_feature_expectations(instance), progress=progress)
     elapsed = time.perf_counter() - start
     print(f"latent_raw seed {args.seed}, MaxEnt-Z, beta {args.beta:g}: {result.num_samples} samples in "

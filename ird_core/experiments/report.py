@@ -25,6 +25,7 @@ from ird_core.experiments.trials import (
     Z_METHODS,
     TrialResult,
 )
+from ird_core.vocabulary import ZMethod
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
 
 __all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "write_results_csv", "markdown_table", "claim_check",
@@ -32,7 +33,7 @@ __all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "write_results_c
 
 #: Tables and figures: the paper's conditions, then a world file.
 ORDER: tuple[str, ...] = CONDITIONS + (FILE_CONDITION,)
-Z_LABEL: dict[str, str] = {"sample_z": "IRD Sample-Z", "maxent_z": "IRD MaxEnt-Z"}
+Z_LABEL: dict[str, str] = {ZMethod.SAMPLE_Z: "IRD Sample-Z", ZMethod.MAXENT_Z: "IRD MaxEnt-Z"}
 #: (planner, label, colour) of Figure 4's bars.
 FIGURE4: tuple[tuple[str, str, str], ...] = (
     ("literal", "Literal", "#c44e52"), ("ird_sample_z", Z_LABEL["sample_z"], "#4c72b0"),

@@ -297,7 +297,7 @@ def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) ->
     method_index = Z_METHODS.index(method) + 1
     sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
     observations = posterior.proxy_observations(
-        inst, spec.num_proxy_samples if method == "sample_z" else None, _derived_seed(spec.seed, 100),
+        inst, spec.num_proxy_samples if method == ZMethod.SAMPLE_Z else None, _derived_seed(spec.seed, 100),
         spec.prior_sigma)
     settings = spec.sampler(method).for_dim(observations[0].dim)
     with warnings.catch_warnings():
@@ -356,13 +356,13 @@ def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarr
     samples stands in). A work limit, not a time limit, so a trial is the same on any machine."""
     plans: dict[tuple[str, str], tuple[planning.Plan, bool]] = {}
     for base in BASELINES:
-        plans["per_step", base] = (planning.plan_path(test, samples, "per_step", base, reference), False)
+        plans[PlanMode.PER_STEP, base] = (planning.plan_path(test, samples, PlanMode.PER_STEP, base, reference), False)
     for base in BASELINES:
         try:
-            plans["trajectory", base] = (planning.plan_path(test, samples, "trajectory", base, reference,
+            plans[PlanMode.TRAJECTORY, base] = (planning.plan_path(test, samples, PlanMode.TRAJECTORY, base, reference,
                                                             work_limit=work_limit), False)
         except RuntimeError:
-            plans["trajectory", base] = (plans["per_step", base][0], True)
+            plans[PlanMode.TRAJECTORY, base] = (plans[PlanMode.PER_STEP, base][0], True)
     return plans
 
 

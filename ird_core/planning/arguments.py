@@ -16,9 +16,9 @@ __all__ = ["SOLVERS", "check_choice", "check_weights", "check_reference", "check
 
 #: Solvers a caller may request per mode (``None`` = automatic).
 SOLVERS: dict[str, tuple[str, ...]] = {
-    "literal": ("dp",),
-    "per_step": ("dp",),
-    "trajectory": ("label-bb", "milp-highs"),
+    PlanMode.LITERAL: ("dp",),
+    PlanMode.PER_STEP: ("dp",),
+    PlanMode.TRAJECTORY: ("label-bb", "milp-highs"),
 }
 
 

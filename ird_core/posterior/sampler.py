@@ -54,9 +54,9 @@ DEFAULT_NUM_CHAINS: int = 16
 #: Per-method sampler defaults (see the module docstring): Sample-Z's likelihood has much
 #: stiffer creases (a near-hard max over the proxies' feature counts), so it needs a longer
 #: warm-up to learn the metric, longer chains and more leapfrog steps per trajectory.
-DEFAULT_WARMUP: dict[str, int] = {"maxent_z": 100, "sample_z": 150}
+DEFAULT_WARMUP: dict[str, int] = {ZMethod.MAXENT_Z: 100, ZMethod.SAMPLE_Z: 150}
 #: With ``thin=None`` each chain runs at least this many iterations after warm-up.
-DEFAULT_MIN_ITERATIONS: dict[str, int] = {"maxent_z": 120, "sample_z": 100}
+DEFAULT_MIN_ITERATIONS: dict[str, int] = {ZMethod.MAXENT_Z: 120, ZMethod.SAMPLE_Z: 100}
 DEFAULT_MAX_LEAPFROG: dict[str, int] = {"maxent_z": 32, "sample_z": 64}
 DEFAULT_KERNEL: str = "hmc"
 #: HMC integration time in preconditioned units.
