@@ -2,8 +2,8 @@
 
 Sub-packages, by layer:
 
-- ``nodes``: the graph's nodes (world, perception, inference, planner, rob, designer, recorder),
-  thin rclpy shells over ``jobs`` (the ROS-free worker jobs and logic they call) and ``ird_core``;
+- ``nodes``: the graph's nodes (world, perception, inference, planner, rob, navigator, designer,
+  recorder), thin rclpy shells over ``jobs`` (the ROS-free worker jobs and logic they call) and ``ird_core``;
 - ``conversions``: the single place where numpy arrays become ``ird_msgs`` / ``nav_msgs`` messages
   and back; ``runtime``: what every node process runs on (start-up, parameters, worker pool);
 - ``graph``: topic, service and node names, node table, private ROS domains; ``launch``: starts

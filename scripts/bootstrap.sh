@@ -95,7 +95,7 @@ else
   run_logged ird_msgs-build cmake --build "$MSGS_BUILD" --parallel "$(nproc 2>/dev/null || echo 2)"
   run_logged ird_msgs-install cmake --install "$MSGS_BUILD"
   unset AMENT_PREFIX_PATH CMAKE_PREFIX_PATH
-  "$PY" -c 'import ird_msgs.msg, ird_msgs.srv' || die "ird_msgs was installed but does not import"
+  "$PY" -c 'import ird_msgs.msg, ird_msgs.srv, ird_msgs.action' || die "ird_msgs was installed but does not import"
   stamp_set ird_msgs "$MSGS_HASH"
 fi
 

@@ -2,6 +2,9 @@
 """A minimal client of /ird/infer (``ird_ros.apps.call_inference``; also the ``ird-infer`` command).
 
     .venv/bin/python scripts/call_inference.py [--from-world] [--method ...] [--timeout 120]
+
+It searches the graph in ROS_DOMAIN_ID (printed first); attach to a graph's domain with
+``export ROS_DOMAIN_ID=N; source scripts/lib/ros_env.sh && ird_ros_env``.
 """
 
 import sys

@@ -2,6 +2,9 @@
 """Start the IRD ROS graph and supervise it (``ird_ros.apps.launch_graph``; also the ``ird-launch`` command).
 
     .venv/bin/python scripts/launch_graph.py [--nodes world,perception,...] [--private-domain] [--record DIR] ...
+    .venv/bin/python scripts/launch_graph.py --private-domain --record DIR --mission 3 --mission-then-exit
+
+It prints its ROS_DOMAIN_ID and the line a second shell runs to attach to the graph.
 
 Every option is described by ``--help``.
 """

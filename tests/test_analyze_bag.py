@@ -287,3 +287,26 @@ def test_cli_rejects_an_unfinished_bag(tmp_path: Path, capsys: pytest.CaptureFix
     (tmp_path / "broken" / "broken.mcap").write_bytes(b"\x89MCAP0\r\n")  # what a SIGKILLed writer leaves
     assert analyze_bag_app.main([str(tmp_path / "broken")]) == 1
     assert "metadata.yaml" in capsys.readouterr().err
+
+
+def test_a_bag_without_missions_says_so_and_draws_no_trajectories(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """A launched graph that nobody drove: the world's maps, no /plan or /rob/status."""
+    b = BagBuilder(tmp_path / "idle")
+    classes = terrain_classes()
+    h, w = classes.shape
+    terrain = make(b.store, "ird_msgs/msg/TerrainGrid", header=b.header(T0), info=b.info(h, w),
+                   class_names=CLASS_NAMES, classes=classes.ravel().copy(), probabilities=np.zeros(0, np.float32),
+                   novelty=np.zeros(0, np.float32))
+    b.write("/world/terrain", "ird_msgs/msg/TerrainGrid", T0, terrain)
+    b.close()
+    report = analyze(tmp_path / "idle", tmp_path / "plots")
+    assert report["missions"] == [] and report["plots"] == []
+    assert not list((tmp_path / "plots").glob("trajectories_*.png"))
+    out = tmp_path / "cli_plots"
+    assert analyze_bag_app.main([str(tmp_path / "idle"), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    line = next(x for x in text.splitlines() if "no mission in this bag" in x)
+    assert "/plan 0" in line and "/rob/status 0" in line
+    assert "run the graph with --mission, or drive Rob with a client" in line
+    assert "Plots:" not in text and not list(out.glob("trajectories_*.png"))

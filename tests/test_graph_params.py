@@ -13,7 +13,7 @@ import yaml
 from ird_ros.launch import LAUNCHER_DEFAULTS, LAUNCHER_SECTION, plan_launch
 
 GRAPH = Path(__file__).resolve().parents[1] / "msgs_config" / "params" / "graph.yaml"
-NODES = {"world", "perception", "inference", "planner", "rob", "designer", "recorder"}
+NODES = {"world", "perception", "inference", "planner", "rob", "designer", "recorder", "viz", "navigator"}
 
 
 def test_every_node_has_a_parameter_section() -> None:

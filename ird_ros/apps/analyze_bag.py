@@ -17,7 +17,8 @@ Prints:
   - per question to the designer (/ird/queries): query id, strategy, information gain,
     options, answer, who answered, answers in the evidence after it.
 Writes into --out (default: BAG_analysis next to the bag) trajectories_<i>.png (Rob's
-odometry and plans over the ground-truth /world/terrain), true_return.png, posterior.png and
+odometry and plans over the ground-truth /world/terrain; none for a bag without missions, which
+says so), true_return.png, posterior.png and
 query_rounds.png (each question's options on the map); with --json, the whole report as JSON.
 Exit status 1 if the bag can't be read.
 """
@@ -34,8 +35,9 @@ from typing import Any
 from ird_ros.bags.analysis import analyze
 from ird_ros.bags.rounds import rounds_table
 from ird_ros.bags.storage import REPO_MSG_ROOT, make_typestore
+from ird_ros.graph import names
 
-__all__ = ["build_parser", "print_report", "main"]
+__all__ = ["build_parser", "print_report", "no_mission_line", "main"]
 
 
 def _fmt(value: float | None, spec: str = ".3f") -> str:
@@ -59,10 +61,18 @@ def _print_topics(report: dict[str, Any]) -> None:
     print()
 
 
+def no_mission_line(report: dict[str, Any]) -> str:
+    """What a bag without missions lacks, and how to record one."""
+    counts = {t["topic"]: t["count"] for t in report["topics"]}
+    held = ", ".join(f"{topic} {counts.get(topic, 0)}" for topic in (names.TOPIC_PLAN, names.TOPIC_ROB_STATUS))
+    return (f"Missions: none: no mission in this bag, Rob drove no plan ({held} messages) "
+            "(run the graph with --mission, or drive Rob with a client); no trajectories plot written")
+
+
 def _print_missions(report: dict[str, Any]) -> None:
     missions = report["missions"]
     if not missions:
-        print("Missions: none (no /rob/status or /plan in the bag)")
+        print(no_mission_line(report))
         return
     wl = max([len("label")] + [len(m["label"]) for m in missions])
     print("Missions:")

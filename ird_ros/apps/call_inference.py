@@ -4,6 +4,8 @@
     ird-infer --from-world      # the world node's training worlds + proxy
     options: --method maxent_z|sample_z  --beta 10  --num-samples 200  --seed 0  --timeout 120
 
+Prints the ROS_DOMAIN_ID it searches first; with no graph there within --timeout it says so in one
+paragraph (which domain, how to set another) and exits 1.
 The inference node must be running in the same ROS domain (ROS_DOMAIN_ID), e.g. started with
 ``scripts/launch_graph.py --nodes inference`` (or the whole graph for --from-world; with
 ``--world FILE`` the request holds every training world of the file).
@@ -22,6 +24,7 @@ import numpy as np
 from ird_core.posterior import METHODS
 from ird_ros import conversions
 from ird_ros.client import ClientTimeout, IrdClient, infer_request
+from ird_ros.graph.domains import domain_banner
 
 
 def generated_request(seed: int) -> Any:
@@ -38,11 +41,13 @@ def generated_request(seed: int) -> Any:
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--from-world", action="store_true", help="use the world node's request (/world/infer_request)")
-    parser.add_argument("--method", default="maxent_z", choices=METHODS)
-    parser.add_argument("--beta", type=float, default=10.0)
-    parser.add_argument("--num-samples", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--timeout", type=float, default=120.0, help="seconds for discovery and for the answer")
+    parser.add_argument("--method", default="maxent_z", choices=METHODS, help="the posterior's approximation")
+    parser.add_argument("--beta", type=float, default=10.0, help="designer rationality (default 10)")
+    parser.add_argument("--num-samples", type=int, default=200, help="posterior samples (default 200)")
+    parser.add_argument("--seed", type=int, default=0, help="sampler seed (and the generated map's)")
+    parser.add_argument("--timeout", type=float, default=120.0,
+                        help="seconds for discovery and for the answer (default 120); with no graph in "
+                             "ROS_DOMAIN_ID by then, exit 1 naming the domain")
     return parser.parse_args(argv)
 
 
@@ -58,10 +63,19 @@ def print_posterior(post: conversions.PosteriorData) -> None:
           f"ESS min {post.ess_min:.0f}" + ("" if post.converged else "  (NOT converged: R-hat > 1.1)"))
 
 
+def not_found(exc: ClientTimeout, domain_id: int) -> str:
+    """One paragraph: what was not found, in which domain, and how to point this client elsewhere."""
+    return (f"call_inference: no IRD graph answered in ROS_DOMAIN_ID={domain_id}: {' '.join(str(exc).split())} "
+            "Start one in this domain (scripts/launch_graph.py --domain-id "
+            f"{domain_id}), or use the domain a running graph printed: export ROS_DOMAIN_ID=N; "
+            "source scripts/lib/ros_env.sh && ird_ros_env")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Ask /ird/infer once and print the posterior; 1 if the graph is not found or refuses."""
     args = parse_args(argv)
     with IrdClient(node_name="call_inference") as ird:  # this client's own sockets stay on loopback too
+        print(domain_banner(ird.domain_id, "searched for the graph"), flush=True)
         try:
             request = ird.world_infer_request(timeout=args.timeout) if args.from_world else generated_request(args.seed)
             request.beta, request.method = args.beta, args.method
@@ -69,8 +83,11 @@ def main(argv: list[str] | None = None) -> int:
             request.prior_sigma = 0.0  # 0 = the node's default
             result = ird.infer(request, timeout=args.timeout)
         except ClientTimeout as exc:
-            print(f"error: {exc}", file=sys.stderr)
+            print(not_found(exc, ird.domain_id), file=sys.stderr)
             return 1
+        except KeyboardInterrupt:
+            print("call_inference: interrupted", file=sys.stderr)
+            return 130
     if not result.ok:
         print(f"inference refused the request: {result.message}", file=sys.stderr)
         return 1

@@ -1,13 +1,16 @@
 """The demo mission: Rob, a proxy reward, and lava the designer never saw.
 
-Starts the whole ROS 2 graph (world, perception, inference, planner, rob, recorder) in a
-private domain, then, as an ordinary client of the graph:
+Starts the whole ROS 2 graph (world, perception, inference, planner, rob, navigator, recorder;
+``--viz`` adds the live view) in one ROS domain: the ``ROS_DOMAIN_ID`` this process got (demo.sh's
+lease, kept by ``ird_ros_env``, or one you exported), else a private lease; it prints that one id
+and the line a second shell runs to attach. Then, as an ordinary client of the graph:
 
-1. reads the designer's proxy reward and the training map the world publishes;
-2. calls ``/ird/infer`` (IRD posterior over the true reward given the proxy);
-3. asks ``/ird/plan`` for the literal plan (the proxy taken at its word) and the IRD plan
-   (risk-averse over the posterior samples);
-4. lets Rob execute both plans on the test map and reads his reports on ``/rob/status``;
+1. reads the designer's proxy reward the world publishes;
+2. sends the navigator (action ``/ird/navigate``) the literal goal: the navigator calls
+   ``/ird/infer`` (IRD posterior over the true reward given the proxy, on the world's request) and
+   plans with the proxy taken at its word;
+3. sends the IRD goal: a plan risk-averse over that posterior's samples;
+4. Rob drives each plan on the test map to the end; the action's results say how it went;
 5. stops the graph (the recorder closes the bag), and writes a picture: the training map, the
    test map with both paths, and the posterior's risk map.
 
@@ -43,8 +46,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as dt
+import json
 import multiprocessing
 import multiprocessing.pool
+import os
 import signal
 import sys
 import time
@@ -76,18 +81,23 @@ DEFAULT_NUM_OPTIONS = 2
 DEFAULT_DESIGNER_BETA = 1.0
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
+    """The demo's options (``scripts/demo.sh --help`` prints the same list without a venv)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--condition", default="latent_raw", choices=lavaland.ALL_CONDITIONS)
+    p.add_argument("--condition", default="latent_raw", choices=lavaland.ALL_CONDITIONS,
+                   help="the Lavaland condition (default latent_raw)")
     p.add_argument("--world", type=Path, default=None, metavar="FILE",
                    help="a world file (worlds/*.yaml) instead of a generated Lavaland")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help="world seed (maps, proxy; also the designer's)")
-    p.add_argument("--method", default="maxent_z", choices=posterior.METHODS)
+    p.add_argument("--method", default="maxent_z", choices=posterior.METHODS,
+                   help="the IRD posterior's approximation (default maxent_z)")
     p.add_argument("--beta", type=float, default=None, help="designer rationality (default: the experiments')")
     p.add_argument("--num-samples", type=int, default=None, help="posterior samples (default: the experiments')")
     p.add_argument("--rate", type=float, default=10.0, help="Rob's speed, cells per second")
     p.add_argument("--out", default=str(REPO / "out" / "demo"), help="output folder (a run folder is made inside)")
     p.add_argument("--no-survey", action="store_true", help="skip the 20-seed survey")
+    p.add_argument("--viz", action="store_true",
+                   help="also start the viz node (live view over the Foxglove protocol; its ws:// URL is printed)")
     q = p.add_argument_group("questions to the designer (after the IRD plan)")
     q.add_argument("--queries", type=int, default=0, help="rounds of questions (0 = none: the plain mission)")
     q.add_argument("--designer", default="simulated", choices=("simulated", "web"),
@@ -97,6 +107,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     q.add_argument("--designer-beta", type=float, default=DEFAULT_DESIGNER_BETA,
                    help="simulated designer's rationality on the options' true returns")
     q.add_argument("--port", type=int, default=8765, help="web designer's port on 127.0.0.1")
+    return p
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = build_parser()
     args = p.parse_args(argv)
     if args.queries < 0:
         p.error(f"--queries: must be >= 0, got {args.queries}")
@@ -229,17 +244,44 @@ def web_url(output: str, port: int) -> str:
     return lines[-1].split(marker, 1)[1].split()[0] if lines else f"http://127.0.0.1:{port}/"
 
 
+def print_live_view(ird: Any) -> None:
+    """The viz node's ``ws://`` URL, from its latched status (JSON with ``url``)."""
+    from ird_ros.graph import names
+
+    status = json.loads(ird.latest(names.TOPIC_VIZ_STATUS, timeout=60).data)
+    print(f"live view (Foxglove protocol): {status['url']}  (open it in Foxglove or Lichtblick)\n", flush=True)
+
+
+def graph_nodes(args: argparse.Namespace) -> list[str] | None:
+    """The demo's nodes: the default ones, the designer with ``--queries``, viz with ``--viz`` (when
+    the node table has it); None: the defaults."""
+    from ird_ros.graph import DEFAULT_NODES, NODES_BY_NAME
+
+    extra = (["designer"] if args.queries else []) + (["viz"] if args.viz and "viz" in NODES_BY_NAME else [])
+    return [*DEFAULT_NODES, *extra] if extra else None
+
+
+def print_domain(graph: Any, args: argparse.Namespace) -> None:
+    """The one domain of the graph with the line to attach a second shell (a note if --viz has no node)."""
+    from ird_ros.graph.domains import domain_banner
+
+    print(domain_banner(graph.domain_id), flush=True)
+    if args.viz and "viz" not in graph.pids():
+        print("[demo] --viz: this checkout has no viz node; running without the live view", flush=True)
+
+
 def run_graph(args: argparse.Namespace, setup: Setup, results: Results) -> None:
     """Start the graph, run the mission as its client, stop the graph (the bag is closed).
 
     Raises ``LaunchError`` (a node never got ready) and lets Ctrl-C through."""
     from ird_ros.client import IrdClient
-    from ird_ros.graph import DEFAULT_NODES
     from ird_ros.launch import GraphLauncher
 
-    nodes = [*DEFAULT_NODES, "designer"] if args.queries else None
-    with GraphLauncher(nodes=nodes, params=setup.params, record_dir=setup.run_dir / "bag", private_domain=True,
-                       output="files", log_dir=setup.run_dir / "logs") as graph:
+    # the domain this shell exported (demo.sh's, kept by ird_ros_env), else a private lease: one id
+    with GraphLauncher(nodes=graph_nodes(args), params=setup.params, record_dir=setup.run_dir / "bag",
+                       private_domain=not os.environ.get("ROS_DOMAIN_ID"), output="files",
+                       log_dir=setup.run_dir / "logs") as graph:
+        print_domain(graph, args)
         ready = graph.wait_ready(timeout=120)
         print(graph.status_table(), flush=True)
         print(f"graph ready in {max(ready.values()):.1f} s (domain {graph.domain_id})\n", flush=True)
@@ -247,6 +289,8 @@ def run_graph(args: argparse.Namespace, setup: Setup, results: Results) -> None:
             print(f"designer web page: {web_url(graph.output('designer', last=200), args.port)}\n"
                   "  (open it in a browser and answer each question; Ctrl-C stops the demo)\n", flush=True)
         with IrdClient(graph.domain_id, node_name="ird_demo") as ird:
+            if "viz" in graph.pids():
+                print_live_view(ird)
             Mission(ird, args, setup.spec, setup.inst.test_labels, results).run()
 
 

@@ -1,8 +1,10 @@
-"""The demo mission's client side (``ird_ros.apps.demo``): infer, plan twice, watch Rob, then the
-rounds of questions, all through ``ird_ros.client.IrdClient`` (docs/spec.md sections 3, 4, 6, 7).
+"""The demo mission's client side (``ird_ros.apps.demo``): two navigation goals, then the rounds of
+questions, all through ``ird_ros.client.IrdClient`` (docs/spec.md sections 3, 4, 6, 7).
 
-:class:`Mission` reads like the mission: the proxy, ``/ird/infer`` (the IRD posterior), the literal
-and the IRD plan driven by Rob, the planner's risk map; with ``--queries N`` each round asks
+:class:`Mission` reads like the mission: the proxy, the literal goal and the IRD goal on the
+navigator's action ``/ird/navigate`` (the first goal runs ``/ird/infer`` on the world's request, the
+IRD goal plans per step against that posterior; Rob drives each plan to the end), the planner's risk
+map; with ``--queries N`` each round asks
 ``/ird/query``, waits for the designer's answer on ``/ird/queries`` and its re-sampled posterior,
 and has Rob drive the new IRD plan. :class:`Results` fills as it goes, so Ctrl-C keeps what was done.
 """
@@ -18,9 +20,12 @@ from typing import Any
 import numpy as np
 
 from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec
+from ird_core.vocabulary import PlanMode
 from ird_core.worlds import evaluation
 from ird_ros.apps.demo_rounds import Outcome, RoundResult, describe_counts, terrain_counts
-from ird_ros.client import IrdClient, infer_request, plan_request, query_request
+from ird_ros.client import IrdClient, plan_request, query_request
+from ird_ros.client.navigation import CURRENT_POSTERIOR, NavigationFeedback, NavigationGoal, NavigationStatus
+from ird_ros.conversions.posterior import posterior_from_msg
 from ird_ros.graph import names
 
 __all__ = ["Mission", "Results"]
@@ -36,7 +41,7 @@ class Results:
 
 
 class Mission:
-    """The client side of the mission: infer, plan twice, watch Rob; then the rounds of questions."""
+    """The client side of the mission: the literal and the IRD goal; then the rounds of questions."""
 
     def __init__(self, ird: IrdClient, args: argparse.Namespace, spec: TrialSpec, test_labels: np.ndarray,
                  results: Results) -> None:
@@ -46,43 +51,63 @@ class Mission:
 
     def run(self) -> None:
         self.ird.watch_rob(timeout=60)  # before any plan exists: /rob/status is a volatile stream
-        self.ird.subscribe(names.TOPIC_RISK_MAP)
+        self.ird.subscribe(names.TOPIC_RISK_MAP, names.TOPIC_POSTERIOR)
         self.proxy = self.ird.proxy(timeout=60)
-        post = self.infer()
-        self.results.outcomes.append(self.drive("literal", "literal", "none", ()))
-        self.results.outcomes.append(self.drive(f"IRD {MAIN_GRANULARITY}", MAIN_GRANULARITY, MAIN_BASELINE,
-                                                post.samples))
+        # the first goal has the navigator run /ird/infer (the literal plan ignores the posterior);
+        # the IRD goal plans against that posterior, the current one (method "")
+        self.results.outcomes.append(self.navigate(self.goal("literal", PlanMode.LITERAL, self.args.method, "none")))
+        self.results.outcomes.append(self.navigate(self.goal(f"IRD {MAIN_GRANULARITY}", MAIN_GRANULARITY,
+                                                             CURRENT_POSTERIOR, MAIN_BASELINE)))
         self.results.risk = self.ird.risk_map()
         if self.args.queries:
             self.ask_questions()
 
-    def inference_request(self) -> Any:
-        """The world's own request for a world file (every training world), else the proxy on the
-        published training map (latent_classifier: the proxy lives on the classified map)."""
-        args, spec, proxy = self.args, self.spec, self.proxy
-        if args.world is not None:
-            request = self.ird.world_infer_request(timeout=60)
-            request.beta, request.method = float(spec.beta), args.method
-            request.num_samples, request.seed = int(spec.num_samples), int(args.seed)
-            return request
-        proxy_map = (self.ird.latest(names.TOPIC_TRAIN_PROXY_FEATURES, timeout=60)
-                     if args.condition == "latent_classifier" else None)
-        return infer_request(self.ird.latest(names.TOPIC_TRAIN_FEATURES, timeout=60),
-                             (proxy.start_row, proxy.start_col), proxy.horizon, proxy.weights,
-                             beta=spec.beta, method=args.method, num_samples=spec.num_samples, seed=args.seed,
-                             proxy_map=proxy_map)
+    def goal(self, label: str, mode: str, method: str, baseline: str) -> NavigationGoal:
+        """A goal for ``/ird/navigate`` with the demo's sampler settings (``method`` "": no inference)."""
+        spec, args = self.spec, self.args
+        return NavigationGoal(method=method, beta=float(spec.beta), num_samples=int(spec.num_samples),
+                              seed=int(args.seed), mode=str(mode), baseline=str(baseline), label=label)
 
-    def infer(self) -> Any:
-        """``/ird/infer``; the posterior (exits the demo if the node refuses)."""
+    def navigate(self, goal: NavigationGoal) -> Outcome:
+        """``/ird/navigate``: the navigator infers (if asked), plans and has Rob drive the plan to the end;
+        the ``/ird/infer`` line is printed once the goal's posterior is in (exits the demo if the goal fails)."""
+        stages: dict[str, float] = {}
+        posteriors = len(self.ird.received(names.TOPIC_POSTERIOR))
         t0 = time.monotonic()
-        result = self.ird.infer(self.inference_request(), timeout=300)
-        if not result.ok:
-            raise SystemExit(f"/ird/infer failed: {result.message}")
-        post = result.value
-        print(f"/ird/infer: {post.samples.shape[0]} samples in {time.monotonic() - t0:.1f} s, "
-              f"acceptance {post.acceptance_rate:.2f}, R-hat {post.r_hat_max:.3f}, ESS {post.ess_min:.0f}",
-              flush=True)
-        return post
+
+        def on_feedback(feedback: NavigationFeedback) -> None:
+            stage = str(feedback.stage)
+            if stage in stages:
+                return
+            stages[stage] = time.monotonic() - t0  # the time each stage began
+            if stage in ("planning", "driving") and goal.method and "infer line" not in stages:
+                seconds = stages["planning"] - stages.get("inferring", 0.0)
+                if self.print_posterior(posteriors, seconds, feedback, last_chance=stage == "driving"):
+                    stages["infer line"] = seconds
+            if stage == "driving":
+                print(f"/ird/navigate {goal.label}: planned; Rob executes it...", flush=True)
+
+        result = self.ird.navigate(goal, on_feedback=on_feedback, timeout=600)
+        if result.status is not NavigationStatus.SUCCEEDED:
+            raise SystemExit(f"/ird/navigate ({goal.label}) {result.status.name.lower()}: {result.message}")
+        cells = [(int(r), int(c)) for r, c in result.cells]
+        print(f"/ird/navigate {goal.label}: objective {result.objective:.3f}; Rob drove {len(cells)} cells", flush=True)
+        return Outcome(goal.label, cells, result.objective, bool(result.touched_lava), bool(result.reached_target),
+                       float("nan") if result.true_return is None else float(result.true_return),
+                       evaluation.reaches_gold(self.test_labels, cells))
+
+    def print_posterior(self, after: int, seconds: float, feedback: NavigationFeedback, last_chance: bool) -> bool:
+        """The posterior the navigator's ``/ird/infer`` published (beyond the ``after`` received before the
+        goal); not in yet: nothing (False), or on the ``last_chance`` the feedback's summary of it."""
+        received = self.ird.received(names.TOPIC_POSTERIOR)
+        if len(received) <= after:
+            if last_chance:
+                print(f"/ird/infer: {feedback.posterior_summary} in {seconds:.1f} s", flush=True)
+            return last_chance
+        post = posterior_from_msg(received[-1])
+        print(f"/ird/infer: {post.samples.shape[0]} samples in {seconds:.1f} s, acceptance "
+              f"{post.acceptance_rate:.2f}, R-hat {post.r_hat_max:.3f}, ESS {post.ess_min:.0f}", flush=True)
+        return True
 
     def drive(self, label: str, mode: str, baseline: str, weights: Any) -> Outcome:
         """``/ird/plan`` on the latest perceived test map (empty weights: the world's proxy for

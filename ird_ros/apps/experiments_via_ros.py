@@ -181,6 +181,7 @@ def run_via_ros(args: argparse.Namespace, settings: dict) -> int:
     calls (see the module docstring); 0 if everything agrees, else 1."""
     from ird_ros.client import IrdClient
     from ird_ros.graph import names
+    from ird_ros.graph.domains import domain_banner
     from ird_ros.launch import GraphLauncher
 
     trials = DEFAULT_TRIALS if args.trials is None else args.trials
@@ -188,6 +189,8 @@ def run_via_ros(args: argparse.Namespace, settings: dict) -> int:
     with tempfile.TemporaryDirectory(prefix="ird_via_ros_") as tmp:
         with GraphLauncher(nodes=["world", "inference", "planner"], params=write_params(args, Path(tmp)),
                            private_domain=True, output="quiet") as graph:
+            print("\n".join(f"[via-ros] {line}" for line in domain_banner(graph.domain_id).splitlines()),
+                  flush=True)
             graph.wait_ready(120.0)
             with IrdClient(graph.domain_id, node_name="run_experiments_via_ros") as ird:
                 ird.wait_ready(60, services=(names.SRV_GENERATE, names.SRV_INFER, names.SRV_PLAN))

@@ -3,6 +3,7 @@
     .venv/bin/python scripts/launch_graph.py [--nodes world,perception,...] [--params FILE] [--world FILE]
         [--record DIR] [--domain-id N | --private-domain] [--respawn NODE,...]
         [--timeout S] [--run-for S] [--output prefix|quiet|files] [--log-dir DIR] [--dds-network]
+        [--mission [N] [--mission-then-exit]] [--viz]
 
 Prints each node's output as ``[node] line`` (``--output prefix``, the default), then a
 status table (node, pid, state, ready after X s) once every node is ready, and reports a
@@ -14,7 +15,8 @@ within 5 s: SIGINT, then SIGTERM, then SIGKILL to each node's process group; the
 via PR_SET_PDEATHSIG) if this launcher is killed with SIGKILL.
 
 --private-domain leases a free ROS_DOMAIN_ID in 0..101 and sets a private ROS_LOG_DIR; the
-chosen id is printed (``[launcher] ROS_DOMAIN_ID=N``) for clients to use. Without it,
+chosen id is printed (``[launcher] ROS_DOMAIN_ID=N (this graph)``, then the line a second shell
+runs to attach: ``export ROS_DOMAIN_ID=N; source scripts/lib/ros_env.sh && ird_ros_env``). Without it,
 --domain-id or the inherited ROS_DOMAIN_ID (default 0) is used; either must be in 0..101
 (higher IDs put the DDS ports into Linux's ephemeral port range).
 
@@ -28,6 +30,16 @@ FASTRTPS_DEFAULT_PROFILES_FILE of your own is kept (see ird_ros/graph/domains.py
 a generated Lavaland and perception takes its classifier from it (both get ``-p
 world_file:=FILE`` after the params file). The file is loaded here first: a bad file is
 reported (file, key, value) with exit status 2 before any node starts.
+
+--mission [N] (N = 1 without a number): once the graph is ready, a client sends Rob navigation
+goals through the navigator's action /ird/navigate: for each seed 0..N-1 it generates that seed's
+world (/world/generate; with --world the file's world stays and the seed seeds the sampler), then
+the literal goal and the IRD goal (MaxEnt-Z posterior, per-step risk-averse plan), each driven to
+the end, one printed line per goal (``[mission] seed 0 ird: SUCCEEDED, lava False, ...``; see
+ird_ros/apps/mission.py). The graph then keeps running (--run-for counts from there) so a
+recorder (--record) holds the missions for analyze_bag.py; --mission-then-exit stops it instead,
+with exit status 0 if every goal succeeded, else 1. --viz adds the viz node (a live view over the
+Foxglove protocol) when this checkout has it.
 
 Exit status: 0 after a requested stop (signal or --run-for); 1 if the graph could not start,
 did not become ready within --timeout (what is missing is printed) or every node died; 2 for
@@ -46,8 +58,8 @@ import time
 from pathlib import Path
 
 from ird_core.worlds.world_file import load_world_file
-from ird_ros.graph import DEFAULT_NODES, NODES, NodeSpec
-from ird_ros.graph.domains import DDS_NETWORK_VAR
+from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec
+from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
 from ird_ros.nodes.world import with_world_file
 
@@ -110,11 +122,21 @@ def build_parser() -> argparse.ArgumentParser:
                         help="DDS on every interface, for multi-machine use (default: loopback only)")
     parser.add_argument("--node-table", default=None, metavar="MODULE:ATTR",
                         help="another node table (a list of ird_ros.graph.NodeSpec), e.g. for tests' stand-ins")
+    parser.add_argument("--viz", action="store_true",
+                        help="also start the viz node (live view over the Foxglove protocol), if the node table has it")
+    mission = parser.add_argument_group("mission (navigation goals once the graph is ready)")
+    mission.add_argument("--mission", type=int, nargs="?", const=1, default=None, metavar="N",
+                         help="for seeds 0..N-1 (N = 1 if omitted): generate the seed's world and send Rob the "
+                              "literal and the IRD goal through /ird/navigate; then keep running")
+    mission.add_argument("--mission-then-exit", action="store_true",
+                         help="with --mission: stop the graph after the goals (exit 0 if all succeeded, else 1)")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _check_mission_args(parser, args)
     signals = _StopSignals()
     if args.dds_network:
         os.environ[DDS_NETWORK_VAR] = "1"
@@ -124,6 +146,20 @@ def main(argv: list[str] | None = None) -> int:
         _error(str(exc))
         return 2
     return _run(graph, args, signals)
+
+
+def _check_mission_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``--mission`` needs N >= 1 and the world and navigator nodes; ``--viz`` adds viz when it exists."""
+    if args.mission_then_exit and args.mission is None:
+        parser.error("--mission-then-exit: only with --mission")
+    if args.mission is not None and args.mission < 1:
+        parser.error(f"--mission: N must be >= 1, got {args.mission}")
+    if args.mission is not None and args.nodes is not None and not {"world", "navigator"} <= set(args.nodes):
+        parser.error("--mission: needs the world and navigator nodes in --nodes")
+    if args.viz and "viz" not in NODES_BY_NAME:
+        print("[launcher] --viz: this checkout has no viz node; starting without it", flush=True)
+    elif args.viz:
+        args.nodes = [*(args.nodes if args.nodes is not None else DEFAULT_NODES), "viz"]
 
 
 def _make_launcher(args: argparse.Namespace) -> GraphLauncher:
@@ -155,7 +191,13 @@ def _run(graph: GraphLauncher, args: argparse.Namespace, signals: _StopSignals) 
     t_start = time.monotonic()
     try:
         code = _start_and_wait(graph, args.timeout, t_start)
-        return code if code else _supervise(graph, args.run_for)
+        if code:
+            return code
+        if args.mission is not None:
+            code = _mission(graph, args)
+            if args.mission_then_exit:
+                return code
+        return _supervise(graph, args.run_for)
     except _StopRequested:
         print(f"[launcher] {signals.received} received: stopping", flush=True)
         return 0
@@ -173,7 +215,8 @@ def _start_and_wait(graph: GraphLauncher, timeout: float, t_start: float) -> int
     except LaunchError as exc:
         _error(str(exc))
         return 1
-    print(f"[launcher] ROS_DOMAIN_ID={graph.domain_id} ROS_LOG_DIR={graph.env['ROS_LOG_DIR']}", flush=True)
+    domain, attach = domain_banner(graph.domain_id).splitlines()
+    print(f"[launcher] {domain} ROS_LOG_DIR={graph.env['ROS_LOG_DIR']}\n[launcher] {attach}", flush=True)
     for name, pid in graph.pids().items():
         print(f"[launcher] started {name} pid {pid}", flush=True)
     try:
@@ -186,6 +229,19 @@ def _start_and_wait(graph: GraphLauncher, timeout: float, t_start: float) -> int
     print(graph.status_table(), flush=True)
     print(f"[launcher] graph ready after {time.monotonic() - t_start:.2f} s", flush=True)
     return 0
+
+
+def _mission(graph: GraphLauncher, args: argparse.Namespace) -> int:
+    """``--mission``: the navigation goals (``ird_ros.apps.mission``); 0 if every goal succeeded, else 1."""
+    from ird_ros.apps.mission import run_mission
+    from ird_ros.client import ClientTimeout
+
+    try:
+        return run_mission(graph.domain_id, range(args.mission), generate=args.world is None,
+                           echo=lambda line: print(line, flush=True))
+    except ClientTimeout as exc:
+        _error(f"--mission: {exc}")
+        return 1
 
 
 def _supervise(graph: GraphLauncher, run_for: float | None) -> int:

@@ -58,7 +58,7 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
     (with ``out_dir``) PNG plots of a bag, as a JSON-able dict.
 
     Plots: ``trajectories_<i>.png`` (one per distinct terrain the missions ran on; without
-    any /world/terrain just the paths), ``true_return.png``, ``posterior.png`` (latest
+    any /world/terrain just the paths; none for a bag without missions), ``true_return.png``, ``posterior.png`` (latest
     /ird/posterior) and ``query_rounds.png`` (each question's options on the map), each only
     when the bag holds what it needs.
     """
@@ -99,8 +99,6 @@ def _write_plots(out: Path, messages: dict[str, list[BagMessage]], missions: lis
     for m in missions:
         tidx = latest_before(terrains, m.start_ns)
         groups[-1 if tidx is None else tidx].append(m)
-    if not missions and terrains:
-        groups[len(terrains) - 1] = []
     for n, (tidx, ms) in enumerate(sorted(groups.items())):
         terrain = terrain_from_msg(terrains[tidx].msg) if tidx >= 0 else None
         title = f"Rob's trajectories on terrain #{tidx}" if tidx >= 0 else "Rob's trajectories"

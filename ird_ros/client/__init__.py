@@ -11,6 +11,13 @@ from ird_ros.client.ird_client import (
     PendingCall,
     domain_hint,
 )
+from ird_ros.client.navigation import (
+    NavigationFeedback,
+    NavigationGoal,
+    NavigationHandle,
+    NavigationResult,
+    NavigationStatus,
+)
 from ird_ros.client.requests import infer_request, plan_request, query_request
 from ird_ros.client.results import (
     CallFailed,
@@ -25,6 +32,11 @@ from ird_ros.client.results import (
 
 __all__ = [
     "IrdClient",
+    "NavigationGoal",
+    "NavigationFeedback",
+    "NavigationResult",
+    "NavigationStatus",
+    "NavigationHandle",
     "PendingCall",
     "ClientTimeout",
     "GraphNotFound",

@@ -10,6 +10,7 @@ whose methods read like a mission::
         posterior = ird.infer(infer_request(...)).unwrap()
         plan = ird.plan(plan_request(...)).unwrap()
         drive = ird.wait_for_rob(plan)
+        result = ird.navigate(NavigationGoal(mode="per_step"))   # or all of it: the NavigateIrd action
 
 Invariants:
 
@@ -39,6 +40,14 @@ from typing import TYPE_CHECKING, Any, Callable, Generic, Iterable, Sequence, Ty
 import numpy as np
 
 from ird_ros import conversions as conv
+from ird_ros.client.navigation import (
+    NavigationFeedback,
+    NavigationGoal,
+    NavigationHandle,
+    NavigationResult,
+    make_action_client,
+    send_goal,
+)
 from ird_ros.client.results import (
     CallResult,
     CallStatus,
@@ -48,11 +57,11 @@ from ird_ros.client.results import (
     WorldMessages,
     classify_answer,
 )
-from ird_ros.waits import WatchedProcess, spin_until
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, ros_context
 from ird_ros.runtime.offload import service_qos
 from ird_ros.stamps import stamp_key
+from ird_ros.waits import WatchedProcess, spin_until
 
 if TYPE_CHECKING:
     from ird_msgs.msg import ProxyReward, QueryRecord
@@ -63,7 +72,7 @@ __all__ = ["IrdClient", "PendingCall", "ClientTimeout", "GraphNotFound", "ALL_SE
 T = TypeVar("T")
 
 ALL_SERVICES: tuple[str, ...] = tuple(names.SERVICE_TYPES)
-"""Every service of the full graph (world, inference, planner)."""
+"""Every service of the full graph (world, inference, planner, rob)."""
 
 #: Reader depth of the stream topics (/rob/status, /odom): a whole drive queues while the
 #: caller is not spinning.
@@ -172,6 +181,7 @@ class IrdClient:
         self._services: dict[str, Any] = {}
         self._subscriptions: dict[str, Any] = {}
         self._received: dict[str, list[Any]] = {}
+        self._navigate: Any = None  # the /ird/navigate action client, made on first use
 
     # ------------------------------------------------------------------ lifetime
 
@@ -179,6 +189,8 @@ class IrdClient:
         """Destroy the node (and shut down the client's own context)."""
         if self._executor is not None:
             self._executor.remove_node(self.node)
+        if self._navigate is not None:
+            self._navigate.destroy()
         self.node.destroy_node()
         self._stack.close()
 
@@ -421,3 +433,20 @@ class IrdClient:
         self.spin_until(lambda: bool(matching()), timeout=timeout,
                         what=f"the posterior of the answer to query {record.query_id}")
         return conv.posterior_from_msg(matching()[0], field=names.TOPIC_POSTERIOR)
+
+    # ------------------------------------------------------------------ navigation (NavigateIrd)
+
+    def navigate_async(self, goal: NavigationGoal, *, on_feedback: Callable[[NavigationFeedback], None] | None = None,
+                       timeout: float = 60.0) -> NavigationHandle:
+        """Send ``goal`` to ``/ird/navigate`` once its server is discovered (within ``timeout``);
+        ``done()``, ``cancel()``, ``result(timeout)`` later (:mod:`ird_ros.client.navigation`)."""
+        if self._navigate is None:
+            self._navigate = make_action_client(self.node)
+        self._discover(self._navigate.server_is_ready, lambda: f"action {names.ACTION_NAVIGATE}", timeout)
+        return send_goal(self._navigate, self.spin_until, goal, on_feedback)
+
+    def navigate(self, goal: NavigationGoal, *, on_feedback: Callable[[NavigationFeedback], None] | None = None,
+                 timeout: float = 600.0) -> NavigationResult:
+        """Run a navigation goal (infer, ask, plan, drive) and return how it ended: SUCCEEDED, CANCELED,
+        ABORTED or REJECTED (the field named); :class:`ClientTimeout` after ``timeout`` s."""
+        return self.navigate_async(goal, on_feedback=on_feedback).result(timeout)

@@ -51,6 +51,7 @@ __all__ = [
     "dds_env",
     "dds_network",
     "dds_process_env",
+    "domain_banner",
     "lease_domain",
     "ros_env",
     "ros_context",
@@ -163,6 +164,14 @@ def lease_domain(*, start: int | None = None, log_dir: str | os.PathLike[str] | 
         Path(log_dir).mkdir(parents=True, exist_ok=True)
         return DomainLease(candidate, Path(log_dir), fd, tmp)
     raise RuntimeError(f"all ROS domain IDs 0..{DOMAIN_ID_MAX} are leased (locks in {DOMAIN_LOCK_DIR})")
+
+
+def domain_banner(domain_id: int, role: str = "this graph") -> str:
+    """The two lines every entry point prints once: the one ROS domain it uses (``role``: whose it
+    is) and the line a second shell runs to attach to it (``scripts/lib/ros_env.sh`` keeps it)."""
+    return (f"ROS_DOMAIN_ID={int(domain_id)} ({role})\n"
+            f"attach a second shell: export ROS_DOMAIN_ID={int(domain_id)}; "
+            "source scripts/lib/ros_env.sh && ird_ros_env")
 
 
 def dds_network(env: Mapping[str, str]) -> bool:

@@ -30,6 +30,11 @@ __all__ = [
     "NODE_ROB",
     "NODE_DESIGNER",
     "NODE_RECORDER",
+    "NODE_VIZ",
+    "NODE_NAVIGATOR",
+    "ACTION_NAVIGATE",
+    "ACTION_TYPES",
+    "SRV_ROB_STOP",
     "TOPIC_TRAIN_FEATURES",
     "TOPIC_TEST_FEATURES",
     "TOPIC_TRAIN_PROXY_FEATURES",
@@ -46,6 +51,7 @@ __all__ = [
     "TOPIC_ROB_STATUS",
     "TOPIC_QUERIES",
     "TOPIC_RECORDER_STATUS",
+    "TOPIC_VIZ_STATUS",
     "SRV_GENERATE",
     "SRV_INFER",
     "SRV_QUERY",
@@ -73,6 +79,9 @@ NODE_PLANNER = "planner"
 NODE_ROB = "rob"
 NODE_DESIGNER = "designer"
 NODE_RECORDER = "recorder"
+# the live view for Foxglove / Lichtblick (ird_ros.nodes.viz; off by default)
+NODE_VIZ = "viz"
+NODE_NAVIGATOR = "navigator"
 
 # world
 TOPIC_TRAIN_FEATURES = "/world/train_features"
@@ -100,8 +109,15 @@ SRV_PLAN = "/ird/plan"
 # rob
 TOPIC_ODOM = "/odom"
 TOPIC_ROB_STATUS = "/rob/status"
+# std_srvs/Trigger: stop the current plan where Rob is (RobStatus.stopped)
+SRV_ROB_STOP = "/rob/stop"
+# navigator: the NavigateIrd action (goal -> infer / ask / plan / drive -> result)
+ACTION_NAVIGATE = "/ird/navigate"
 # recorder: std_msgs/String, latched, JSON {"output_dir": ..., "counts": {topic: messages}}
 TOPIC_RECORDER_STATUS = "/recorder/status"
+# viz: std_msgs/String, latched, JSON {"url": "ws://host:port", "host", "port", "channels": {key: topic}};
+# published once its Foxglove WebSocket server listens (the node's readiness)
+TOPIC_VIZ_STATUS = "/viz/status"
 
 LATCHED = "latched"
 STREAM = "stream"
@@ -124,6 +140,7 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_ODOM: "nav_msgs/msg/Odometry",
     TOPIC_ROB_STATUS: "ird_msgs/msg/RobStatus",
     TOPIC_QUERIES: "ird_msgs/msg/QueryRecord",
+    TOPIC_VIZ_STATUS: "std_msgs/msg/String",
 }
 """Message type of every topic of the graph (``package/msg/Name``)."""
 
@@ -139,7 +156,13 @@ SERVICE_TYPES: dict[str, str] = {
     SRV_PLAN: "ird_msgs/srv/PlanPath",
     SRV_QUERY: "ird_msgs/srv/ProposeQuery",
     SRV_ANSWER: "ird_msgs/srv/AnswerQuery",
+    SRV_ROB_STOP: "std_srvs/srv/Trigger",
 }
+
+ACTION_TYPES: dict[str, str] = {
+    ACTION_NAVIGATE: "ird_msgs/action/NavigateIrd",
+}
+"""Type of every action of the graph (``package/action/Name``)."""
 
 
 def latched_qos() -> Any:

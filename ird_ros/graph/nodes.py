@@ -119,6 +119,18 @@ NODES: tuple[NodeSpec, ...] = (
         module="ird_ros.nodes.rob",
         publishes=(names.TOPIC_ODOM, names.TOPIC_ROB_STATUS),
         subscribes=(names.TOPIC_PLAN, names.TOPIC_PLAN_INFO, names.TOPIC_TERRAIN, names.TOPIC_PROXY),
+        services=(names.SRV_ROB_STOP,),
+        ready_topics=(),
+    ),
+    NodeSpec(
+        # Serves the NavigateIrd action names.ACTION_NAVIGATE (not a service: readiness is the node
+        # in the graph; clients wait for the action server themselves). A client of /ird/infer,
+        # /ird/query, /ird/plan and /rob/stop while a goal runs; publishes nothing of its own.
+        name=names.NODE_NAVIGATOR,
+        module="ird_ros.nodes.navigator",
+        publishes=(),
+        subscribes=(names.TOPIC_INFER_REQUEST, names.TOPIC_PROXY, names.TOPIC_TERRAIN, names.TOPIC_POSTERIOR,
+                    names.TOPIC_QUERIES, names.TOPIC_ROB_STATUS),
         services=(),
         ready_topics=(),
     ),
@@ -132,6 +144,20 @@ NODES: tuple[NodeSpec, ...] = (
                     names.TOPIC_RISK_MAP),
         services=(),
         ready_topics=(),
+        default=False,
+    ),
+    NodeSpec(
+        # The live view: serves the Foxglove WebSocket protocol (foxglove-sdk) on 127.0.0.1:8766 for
+        # Foxglove or Lichtblick (docs/live_view.md); ready once its latched /viz/status (the URL)
+        # is out, i.e. the server listens; started with --nodes or nodes=[...] (the demo's --viz).
+        name=names.NODE_VIZ,
+        module="ird_ros.nodes.viz",
+        publishes=(names.TOPIC_VIZ_STATUS,),
+        subscribes=(names.TOPIC_TERRAIN, names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TEST_FEATURES,
+                    names.TOPIC_TERRAIN_FEATURES, names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_PLAN,
+                    names.TOPIC_PLAN_INFO, names.TOPIC_ODOM, names.TOPIC_QUERIES),
+        services=(),
+        ready_topics=(names.TOPIC_VIZ_STATUS,),
         default=False,
     ),
 )

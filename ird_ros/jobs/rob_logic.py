@@ -4,7 +4,9 @@ Like nav2_simple_commander: the logic is plain Python, testable without DDS. Rob
 plan one cell per tick: tick ``k`` reports plan cell ``k`` (``step = k``, the start cell is step
 0); the tick that reports the last cell (``step = T``) is the final one, with ``done = True``;
 after that Rob idles (``tick()`` returns ``None``) until a new plan arrives. A new plan replaces
-the current one at once and execution restarts at its first cell.
+the current one at once and execution restarts at its first cell. :meth:`RobExecutor.stop` ends
+the current plan where Rob is: it reports his current cell once more (``stopped = done = True``,
+the same step and return; before the first tick, the start cell as step 0) and Rob idles.
 
 Evaluation (docs/spec.md section 5) is ``ird_core.worlds.evaluation.evaluate_path`` of each
 visited cell on the ground-truth terrain of the test map with the true per-terrain rewards
@@ -47,6 +49,7 @@ class RobStatusData:
     true_return: float
     plan_label: str
     plan_stamp: Any
+    stopped: bool = False
 
 
 class RobExecutor:
@@ -150,6 +153,31 @@ class RobExecutor:
         return self.active and not self.ready
 
     # ------------------------------------------------------------------ execution
+
+    def stop(self) -> RobStatusData | None:
+        """End the current plan where Rob is and report it (``stopped``); ``None`` when idle or
+        when the plan still waits for the terrain or rewards (then it is dropped unreported)."""
+        if not self.active:
+            return None
+        if not self.ready:
+            self._done = True
+            return None
+        if self._index == 0:  # stopped before the first move: Rob stands on the start cell
+            status = self.tick()
+            assert status is not None
+        else:
+            status = self._report(self._index - 1)
+        self._done = True
+        return RobStatusData(**{**status.__dict__, "done": True, "stopped": True})
+
+    def _report(self, index: int) -> RobStatusData:
+        """The status of plan cell ``index`` as already reported (no new evaluation)."""
+        assert self._cells is not None
+        row, col = self._cells[index]
+        return RobStatusData(row=row, col=col, terrain=self.terrain_at(row, col), step=index,
+                             horizon=len(self._cells) - 1, done=self._done, touched_lava=self._touched_lava,
+                             reached_target=self._reached_target, true_return=self._return,
+                             plan_label=self._label, plan_stamp=self._stamp)
 
     def terrain_at(self, row: int, col: int) -> str:
         assert self._labels is not None

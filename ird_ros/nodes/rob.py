@@ -10,6 +10,10 @@ and volatile. The tick that reaches the last cell publishes the final status (``
 then Rob idles until the next plan. A new plan replaces the current one and Rob restarts at its
 first cell (``step`` 0). The logic lives in :mod:`ird_ros.jobs.rob_logic`.
 
+``/rob/stop`` (std_srvs/Trigger) stops the current plan where Rob is (the navigator's cancel):
+Rob publishes his current cell once more with ``stopped: true`` and ``done: true`` and idles until
+the next plan; the answer says where he stopped, or that he was idle (``success`` is true both ways).
+
 Because ``/plan`` is latched, a Rob started after the planner executes the current plan.
 ``plan_label`` comes from the ``/ird/plan_info`` whose stamp equals the plan's (the planner
 publishes the info first; if it arrives later, the label is filled in then); ``plan_stamp``
@@ -23,11 +27,12 @@ from typing import Any
 
 from nav_msgs.msg import Odometry, Path
 from rclpy.node import Node
+from std_srvs.srv import Trigger
 
 from ird_msgs.msg import PlanInfo, ProxyReward, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.graph import names
-from ird_ros.jobs.rob_logic import RobExecutor
+from ird_ros.jobs.rob_logic import RobExecutor, RobStatusData
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.stamps import stamp_key
@@ -57,6 +62,7 @@ class RobNode(Node):
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
         self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_info, latched)
         self.create_subscription(Path, names.TOPIC_PLAN, self._on_plan, latched)
+        self.create_service(Trigger, names.SRV_ROB_STOP, self._on_stop)
         self.create_timer(1.0 / self.rate_hz, self._tick)
 
     # ------------------------------------------------------------------ inputs
@@ -106,13 +112,39 @@ class RobNode(Node):
 
     # ------------------------------------------------------------------ execution
 
+    def _on_stop(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        try:
+            status = self.rob.stop()
+        except ValueError as exc:
+            status = None
+            self.get_logger().error(f"plan aborted: {exc}")
+        response.success = True
+        if status is None:
+            response.message = "idle: no plan to stop"
+        else:
+            self._publish(status)
+            response.message = (f"stopped at ({status.row}, {status.col}), step {status.step} of "
+                                f"{status.horizon}")
+            self.get_logger().info(f"plan stopped ({status.plan_label or 'unlabelled'}): {response.message}")
+        return response
+
     def _tick(self) -> None:
         try:
             status = self.rob.tick()
         except ValueError as exc:
             self.get_logger().error(f"plan aborted: {exc}")
             return
-        if status is None or self._geometry is None:
+        if status is None:
+            return
+        self._publish(status)
+        if status.done:
+            self.get_logger().info(
+                f"plan done ({status.plan_label or 'unlabelled'}): return {status.true_return:.3f}, "
+                f"lava {status.touched_lava}, target {status.reached_target}")
+
+    def _publish(self, status: RobStatusData) -> None:
+        """``/odom`` and ``/rob/status`` of one status report."""
+        if self._geometry is None:
             return
         resolution, origin = self._geometry
         stamp = conv.now_stamp(self)
@@ -134,11 +166,8 @@ class RobNode(Node):
         msg.plan_label = status.plan_label
         if status.plan_stamp is not None:
             msg.plan_stamp = status.plan_stamp
+        msg.stopped = status.stopped
         self._status_pub.publish(msg)
-        if status.done:
-            self.get_logger().info(
-                f"plan done ({status.plan_label or 'unlabelled'}): return {status.true_return:.3f}, "
-                f"lava {status.touched_lava}, target {status.reached_target}")
 
 
 def main(args: list[str] | None = None) -> int:

@@ -7,7 +7,9 @@
 #     IRD_DDS_NETWORK=1: multi-machine, no profile, range SUBNET. A profile of your own
 #     (FASTRTPS_/FASTDDS_DEFAULT_PROFILES_FILE naming another file, or SKIP_DEFAULT_XML_FILE=1)
 #     is kept, with range LOCALHOST. ROS_LOCALHOST_ONLY is unset;
-#   - ROS_DOMAIN_ID: kept if already set, else leased in 0..101 by taking an flock on
+#   - ROS_DOMAIN_ID: kept (and exported) if already set, so `export ROS_DOMAIN_ID=85; source
+#     scripts/lib/ros_env.sh && ird_ros_env` attaches this shell to the graph printed as domain 85
+#     (a value outside 0..101 is refused); else leased in 0..101 by taking an flock on
 #     ${IRD_DOMAIN_LOCK_DIR:-/tmp/ird_ros_domains}/domain_<N>.lock on file descriptor 9
 #     (held while this shell or any child lives; the same lock files as
 #     ird_ros.graph.domains.lease_domain, so concurrent runs never share a domain);
@@ -44,7 +46,13 @@ ird_dds_env() {
 ird_ros_env() {
   ird_dds_env || return 1
   unset _ROS_WHEELS_BOOTSTRAP_COMPLETE
-  if [[ -z "${ROS_DOMAIN_ID:-}" ]]; then
+  if [[ -n "${ROS_DOMAIN_ID:-}" ]]; then
+    if ! [[ "$ROS_DOMAIN_ID" =~ ^[0-9]+$ ]] || (( 10#$ROS_DOMAIN_ID > 101 )); then
+      echo "ird_ros_env: ROS_DOMAIN_ID must be an integer in 0..101, got '${ROS_DOMAIN_ID}'" >&2
+      return 1
+    fi
+    export ROS_DOMAIN_ID
+  else
     local dir="${IRD_DOMAIN_LOCK_DIR:-/tmp/ird_ros_domains}" n=102 start i id
     mkdir -p "$dir" && chmod 1777 "$dir" 2>/dev/null || true
     start="${IRD_TEST_DOMAIN_BASE:-$(( ($$ * 7919) % n ))}"

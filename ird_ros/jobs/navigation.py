@@ -1,0 +1,236 @@
+"""The navigator's ROS-free logic: goal validation, stages, Rob's drive and its judgement.
+
+The navigator node (:mod:`ird_ros.nodes.navigator`) serves the ``NavigateIrd`` action; everything
+it decides without ROS lives here, testable without DDS (``tests/test_navigation_goals.py``).
+
+Invariants:
+
+- :func:`check_goal` refuses a bad goal before any work starts, with a ``ValueError`` whose
+  message starts with the field's name (``method: ...``, ``queries: ...``); the ranges are the
+  inference service's (``beta`` in ``ird_core.checks.BETA_RANGE``, ``num_samples`` up to the
+  navigator's ``max_num_samples``) and the planner's (``mode`` / ``baseline`` through
+  ``ird_core.planning.check_plan_arguments``).
+- Risk measures: only ``min`` is implemented: the per-sample worst case of the posterior samples,
+  per step or per trajectory as ``mode`` says (docs/spec.md section 4). Any other measure (e.g.
+  ``cvar``) is refused naming ``risk_measure``, and ``min`` takes no level (``risk_level`` 0).
+- A :class:`DriveTracker` follows Rob's statuses of ONE plan (matched by the plan's stamp key):
+  the driven cells are the plan's cells up to the last step Rob reported, start cell first; the
+  drive is over at the first status with ``done`` (finished or ``stopped``).
+- :func:`judge` evaluates driven cells with ``ird_core.worlds.evaluation.evaluate_path`` on the
+  ground truth with Rob's policy (a terrain without a true reward earns 0; no true rewards at all:
+  the return is NaN), so it equals Rob's own ``RobStatus`` verdict for the same cells.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ird_core import planning
+from ird_core.checks import check_real
+from ird_core.vocabulary import Baseline, PlanMode, ZMethod, parse, values
+from ird_core.worlds.evaluation import evaluate_path
+from ird_ros.jobs.ground_truth import evaluation_terrain
+
+__all__ = [
+    "NavigationStatus",
+    "Stage",
+    "RiskMeasure",
+    "RISK_MEASURES",
+    "CURRENT_POSTERIOR",
+    "DEFAULT_LABEL",
+    "GoalLimits",
+    "CheckedGoal",
+    "check_goal",
+    "posterior_summary",
+    "Judgement",
+    "judge",
+    "DriveTracker",
+]
+
+CURRENT_POSTERIOR = ""
+"""``method`` of a goal that uses the current ``/ird/posterior`` instead of inferring."""
+
+DEFAULT_LABEL = "navigate"
+"""The plan label of a goal with an empty ``label``."""
+
+
+class NavigationStatus(StrEnum):
+    """How a navigation goal ended (``NavigateIrd.Result.status``)."""
+
+    SUCCEEDED = "succeeded"
+    CANCELED = "canceled"
+    ABORTED = "aborted"
+    REJECTED = "rejected"
+
+
+class Stage(StrEnum):
+    """What the navigator is doing (``NavigateIrd.Feedback.stage``), in the order it does it."""
+
+    INFERRING = "inferring"
+    ASKING = "asking"
+    PLANNING = "planning"
+    DRIVING = "driving"
+
+
+class RiskMeasure(StrEnum):
+    """Risk measures over the posterior samples; only the worst case is implemented."""
+
+    MIN = "min"
+
+
+RISK_MEASURES: tuple[str, ...] = values(RiskMeasure)
+
+
+@dataclass(frozen=True)
+class GoalLimits:
+    """The navigator's parameters a goal is checked against and defaulted from."""
+
+    max_queries: int = 5
+    max_num_samples: int = 100000
+    default_beta: float = 5.0
+    default_num_samples: int = 40
+
+
+@dataclass(frozen=True)
+class CheckedGoal:
+    """A validated goal with its defaults filled in (``method`` None = the current posterior)."""
+
+    method: ZMethod | None
+    beta: float
+    num_samples: int
+    seed: int
+    mode: PlanMode
+    baseline: Baseline
+    risk_measure: RiskMeasure
+    risk_level: float
+    queries: int
+    label: str
+
+    @property
+    def uses_current_posterior(self) -> bool:
+        return self.method is None
+
+
+def _integer(name: str, value: object, low: int, high: int, high_name: str = "") -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= int(value) <= high:
+        bound = f"{high_name}={high}" if high_name else str(high)
+        raise ValueError(f"{name}: expected an integer in [{low}, {bound}], got {value!r}")
+    return int(value)
+
+
+def check_goal(*, method: object, beta: object, num_samples: object, seed: object, mode: object,
+               baseline: object, risk_measure: object, risk_level: object, queries: object, label: object,
+               limits: GoalLimits) -> CheckedGoal:
+    """A goal's fields validated in message order and defaulted (see the module docstring).
+
+    Raises:
+        ValueError: naming the first bad field.
+    """
+    z_method = None if method == CURRENT_POSTERIOR else parse(ZMethod, method, "method")
+    beta_value = check_real("beta", beta, positive=False)
+    samples = _integer("num_samples", num_samples, 0, limits.max_num_samples, "max_num_samples")
+    seed_value = _integer("seed", seed, 0, 2**32 - 1)
+    planning.check_plan_arguments(mode, baseline)  # ValueError naming mode or baseline
+    if risk_measure not in ("", *RISK_MEASURES):
+        raise ValueError(f"risk_measure: only {list(RISK_MEASURES)} is implemented (the per-sample worst case, "
+                         f"per step or per trajectory by mode), got {risk_measure!r}")
+    level = check_real("risk_level", risk_level, positive=False)
+    if level != 0.0:
+        raise ValueError(f"risk_level: the 'min' measure takes no level; expected 0, got {level:g}")
+    asked = _integer("queries", queries, 0, limits.max_queries, "max_queries")
+    if not isinstance(label, str):
+        raise ValueError(f"label: expected a string, got {label!r}")
+    return CheckedGoal(
+        method=z_method,
+        beta=beta_value if beta_value > 0 else float(limits.default_beta),
+        num_samples=samples or int(limits.default_num_samples),
+        seed=seed_value,
+        mode=PlanMode(mode),
+        baseline=Baseline(baseline),
+        risk_measure=RiskMeasure.MIN,
+        risk_level=0.0,
+        queries=asked,
+        label=label or DEFAULT_LABEL,
+    )
+
+
+def posterior_summary(method: str, num_samples: int, r_hat_max: float, converged: bool = True,
+                      answers: int = 0) -> str:
+    """One line about a posterior, e.g. ``maxent_z, 64 samples, R-hat 1.02``."""
+    text = f"{method or 'posterior'}, {int(num_samples)} samples, R-hat {r_hat_max:.2f}"
+    if answers:
+        text += f", {answers} answer{'s' if answers != 1 else ''}"
+    return text if converged else text + ", not converged"
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """The ground truth's verdict on driven cells (``evaluate_path``)."""
+
+    touched_lava: bool
+    reached_target: bool
+    true_return: float
+
+
+def judge(cells: Sequence[tuple[int, int]], classes: np.ndarray, class_names: Sequence[str],
+          rewards: Mapping[str, float]) -> Judgement:
+    """``cells`` judged on the ground-truth terrain ``classes`` (H, W) with the true ``rewards`` per
+    terrain name (Rob's policy: see the module docstring)."""
+    labels, reward = evaluation_terrain(classes, class_names, rewards, unrewarded_unknown=False)
+    outcome = evaluate_path(labels, [(int(r), int(c)) for r, c in cells], reward)
+    return Judgement(outcome.touched_lava, outcome.reached_target,
+                     outcome.true_return if rewards else math.nan)
+
+
+@dataclass
+class DriveTracker:
+    """Rob's drive of one plan: feed it every ``/rob/status`` (:meth:`feed`); see the module docstring.
+
+    ``plan_key`` is the plan's stamp key (``ird_ros.stamps.stamp_key``), ``plan_cells`` its T+1 cells.
+    """
+
+    plan_key: Any
+    plan_cells: tuple[tuple[int, int], ...]
+    last_step: int = -1
+    cell: tuple[int, int] | None = None
+    final: Any = None
+    stopped: bool = False
+    _steps: dict[int, tuple[int, int]] = field(default_factory=dict)
+
+    def feed(self, key: Any, step: int, row: int, col: int, done: bool, stopped: bool = False,
+             status: Any = None) -> bool:
+        """Take one status (its plan's stamp key and fields); True if it belongs to this plan."""
+        if key != self.plan_key or self.final is not None:
+            return False
+        self._steps[int(step)] = (int(row), int(col))
+        self.last_step = max(self.last_step, int(step))
+        self.cell = (int(row), int(col))
+        if done:
+            self.final = status if status is not None else True
+            self.stopped = bool(stopped)
+        return True
+
+    @property
+    def done(self) -> bool:
+        return self.final is not None
+
+    @property
+    def horizon(self) -> int:
+        return len(self.plan_cells) - 1
+
+    @property
+    def progress(self) -> float:
+        """Fraction of the plan driven, in [0, 1]."""
+        if self.last_step < 0:
+            return 0.0
+        return 1.0 if self.horizon <= 0 else min(1.0, self.last_step / self.horizon)
+
+    @property
+    def cells(self) -> list[tuple[int, int]]:
+        """The driven cells, start first: Rob's reported cell per step, the plan's where none came."""
+        return [self._steps.get(k, self.plan_cells[k]) for k in range(min(self.last_step + 1, len(self.plan_cells)))]

@@ -1,0 +1,122 @@
+"""The entry points' command lines, without ROS running: every program's ``--help`` works and
+documents each option, ``demo.sh --help`` prints its usage on a machine without a venv (no
+bootstrap, no domain lease), ``ird_ros_env`` keeps an exported ROS_DOMAIN_ID, and the banner
+every entry point prints names one domain and the line a second shell runs to attach to it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from ird_ros.apps import analyze_bag, call_inference, demo, experiments, launch_graph, reindex_bag
+from ird_ros.graph.domains import domain_banner
+
+ROOT = Path(__file__).resolve().parents[1]
+
+MAINS: dict[str, Callable[[list[str]], int]] = {
+    "demo": demo.main, "launch_graph": launch_graph.main, "call_inference": call_inference.main,
+    "analyze_bag": analyze_bag.main, "reindex_bag": reindex_bag.main, "experiments": experiments.main,
+}
+
+
+def _options(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    return [a for a in parser._actions if a.option_strings and a.dest != "help"]
+
+
+@pytest.mark.parametrize("name", sorted(MAINS))
+def test_every_entry_point_prints_help(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        MAINS[name](["--help"])
+    assert info.value.code == 0
+    assert "usage:" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("parser", [launch_graph.build_parser(), demo.build_parser(),
+                                    analyze_bag.build_parser()], ids=["launch_graph", "demo", "analyze_bag"])
+def test_every_option_has_help_text(parser: argparse.ArgumentParser) -> None:
+    undocumented = [a.option_strings[0] for a in _options(parser) if not a.help or a.help == argparse.SUPPRESS]
+    assert undocumented == []
+
+
+def test_launch_graph_help_documents_the_mission_and_the_attach_line() -> None:
+    text = launch_graph.build_parser().format_help()
+    for option in ("--mission", "--mission-then-exit", "--viz", "--private-domain", "--record"):
+        assert option in text
+    assert "/ird/navigate" in text and "analyze_bag.py" in text
+    assert "source scripts/lib/ros_env.sh && ird_ros_env" in text
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--mission-then-exit"], "only with --mission"),
+    (["--mission", "0"], "N must be >= 1"),
+    (["--mission", "--nodes", "world,inference"], "needs the world and navigator nodes"),
+])
+def test_launch_graph_refuses_bad_mission_options(argv: list[str], message: str,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        launch_graph.main(argv)
+    assert info.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_launch_graph_mission_takes_an_optional_count() -> None:
+    parser = launch_graph.build_parser()
+    assert parser.parse_args([]).mission is None
+    assert parser.parse_args(["--mission"]).mission == 1
+    assert parser.parse_args(["--mission", "3", "--mission-then-exit"]).mission == 3
+
+
+def test_demo_sh_help_needs_no_venv_and_lists_every_demo_option(tmp_path: Path) -> None:
+    """demo.sh alone in a fresh tree: no bootstrap.sh, no .venv, no ros_env.sh to lease a domain."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "demo.sh", tmp_path / "scripts" / "demo.sh")
+    env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": str(tmp_path),
+           "IRD_DOMAIN_LOCK_DIR": str(tmp_path / "locks")}
+    for flag in ("--help", "-h"):
+        run = subprocess.run(["bash", str(tmp_path / "scripts" / "demo.sh"), "--seed", "3", flag],
+                             capture_output=True, text=True, env=env, timeout=30)
+        assert run.returncode == 0, run.stderr
+        assert run.stdout.startswith("usage: bash scripts/demo.sh") and run.stderr == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scripts"]  # nothing set up, nothing leased
+    for action in _options(demo.build_parser()):
+        assert all(opt in run.stdout for opt in action.option_strings), action.option_strings
+
+
+def _bash(script: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["bash", "-c", script], capture_output=True, text=True, cwd=ROOT, env=env, timeout=30)
+
+
+def test_ird_ros_env_keeps_an_exported_domain_id(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("ROS_DOMAIN_ID", "ROS_LOG_DIR")}
+    env["IRD_DOMAIN_LOCK_DIR"] = str(tmp_path / "locks")
+    kept = _bash("export ROS_DOMAIN_ID=85; source scripts/lib/ros_env.sh && ird_ros_env && "
+                 "echo \"id=$ROS_DOMAIN_ID\" && env | grep '^ROS_DOMAIN_ID='", env)
+    assert kept.returncode == 0, kept.stderr
+    assert kept.stdout.split() == ["id=85", "ROS_DOMAIN_ID=85"]
+    assert not (tmp_path / "locks").exists()  # nothing leased
+    # set in the shell but not exported: kept and exported, so the shell's children see it too
+    unexported = _bash("ROS_DOMAIN_ID=7; source scripts/lib/ros_env.sh && ird_ros_env && "
+                       "env | grep '^ROS_DOMAIN_ID='", env)
+    assert unexported.stdout.split() == ["ROS_DOMAIN_ID=7"], unexported.stderr
+    refused = _bash("export ROS_DOMAIN_ID=250; source scripts/lib/ros_env.sh && ird_ros_env", env)
+    assert refused.returncode == 1 and "0..101" in refused.stderr and "250" in refused.stderr
+
+
+def test_domain_banner_names_one_domain_and_the_attach_line() -> None:
+    lines = domain_banner(85).splitlines()
+    assert lines == ["ROS_DOMAIN_ID=85 (this graph)",
+                     "attach a second shell: export ROS_DOMAIN_ID=85; source scripts/lib/ros_env.sh && ird_ros_env"]
+    assert domain_banner(3, "searched for the graph").startswith("ROS_DOMAIN_ID=3 (searched for the graph)\n")
+
+
+def test_thin_scripts_print_help() -> None:
+    for script in ("launch_graph.py", "call_inference.py", "analyze_bag.py", "demo.py"):
+        run = subprocess.run([sys.executable, str(ROOT / "scripts" / script), "--help"], capture_output=True,
+                             text=True, cwd=ROOT, timeout=60)
+        assert run.returncode == 0 and "usage:" in run.stdout, (script, run.stderr)
