@@ -50,12 +50,11 @@ from ird_ros.client.navigation import (
 )
 from ird_ros.client.results import (
     CallResult,
-    CallStatus,
     Plan,
     Query,
     RobDrive,
     WorldMessages,
-    classify_answer,
+    decode_answer,
 )
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, ros_context
@@ -107,15 +106,6 @@ def _interface(type_name: str) -> Any:
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
-def _decode_answer(service: str, response: Any, decode: Callable[[Any], T] | None) -> CallResult[T]:
-    """The answer as a CallResult; without ``decode`` the payload of a DONE answer is the response."""
-    status, named = classify_answer(bool(response.success), str(response.message))
-    value = None
-    if status is CallStatus.DONE:
-        value = decode(response) if decode is not None else response
-    return CallResult(service, status, str(response.message), value, named, response)
-
-
 class PendingCall(Generic[T]):
     """A request sent and not answered yet: ``done()``, then ``result()``."""
 
@@ -135,7 +125,7 @@ class PendingCall(Generic[T]):
         """The answer; ``RuntimeError`` before it arrived."""
         if not self._future.done():
             raise RuntimeError(f"{self.service}: no answer yet")
-        return _decode_answer(self.service, self._future.result(), self._decode)
+        return decode_answer(self.service, self._future.result(), self._decode)
 
 
 def _decode_posterior(response: Any) -> conv.PosteriorData:

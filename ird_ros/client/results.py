@@ -21,7 +21,7 @@ import re
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
 from enum import StrEnum
-from typing import Any, Generic, TypeVar
+from typing import Any, Callable, Generic, TypeVar
 
 import numpy as np
 
@@ -33,6 +33,7 @@ __all__ = [
     "CallResult",
     "CallFailed",
     "classify_answer",
+    "decode_answer",
     "Plan",
     "Query",
     "RobDrive",
@@ -169,3 +170,11 @@ class WorldMessages:
         """The generation's stamp as (sec, nanosec)."""
         return stamp_key(self.proxy.header.stamp)
 
+
+def decode_answer(service: str, response: Any, decode: Callable[[Any], T] | None) -> CallResult[T]:
+    """The answer as a CallResult; without ``decode`` the payload of a DONE answer is the response."""
+    status, named = classify_answer(bool(response.success), str(response.message))
+    value = None
+    if status is CallStatus.DONE:
+        value = decode(response) if decode is not None else response
+    return CallResult(service, status, str(response.message), value, named, response)
