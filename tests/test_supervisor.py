@@ -5,7 +5,11 @@ to a child that ignores the first two; a crashed child is restarted after ``resp
 and readiness only counts for the current process; a child that keeps dying is started
 ``1 + respawn_max_retries`` times, then given up; exit events carry the exit code or signal;
 PR_SET_PDEATHSIG ends a child when its supervising process is SIGKILLed; the output pump
-keeps every line. Nothing sleeps: waits are on supervisor events, output lines and pidfds.
+keeps every line. Liveness (``ird_ros.launch.liveness``, with a fake ping client and clock): a
+stopped process is stalled at the next check, a running one whose pings go unanswered for
+``ping_timeout`` too, and either recovers only once it runs and answers a ping sent after the
+stall; ``Supervisor.note`` records only for the current ready process. Nothing sleeps: waits are
+on supervisor events, output lines and pidfds.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from typing import Iterator
 import pytest
 
 from ird_ros.launch import (
+    ChildInfo,
     ChildState,
     EventKind,
     ProcessExited,
@@ -34,6 +39,8 @@ from ird_ros.launch import (
     SignalSent,
     Supervisor,
 )
+from ird_ros.launch.events import ProcessRecovered, ProcessStalled
+from ird_ros.launch.liveness import LivenessChecker, process_state
 from ird_ros.testing import NodeProcess
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -292,3 +299,159 @@ def test_supervisor_imports_no_ros() -> None:
     out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                          capture_output=True, text=True, check=True, timeout=60)
     assert json.loads(out.stdout) == []
+
+
+# ------------------------------------------------------------------------------ liveness
+
+
+class FakeFuture:
+    def __init__(self) -> None:
+        self.answered = False
+
+    def done(self) -> bool:
+        return self.answered
+
+
+class FakeClient:
+    """A ping client: ``ready`` says whether the server is discovered; ``sent`` every request's future."""
+
+    def __init__(self) -> None:
+        self.ready = True
+        self.sent: list[FakeFuture] = []
+        self.removed: list[FakeFuture] = []
+
+    def service_is_ready(self) -> bool:
+        return self.ready
+
+    def call_async(self, _request: object) -> FakeFuture:
+        self.sent.append(FakeFuture())
+        return self.sent[-1]
+
+    def remove_pending_request(self, future: FakeFuture) -> None:
+        self.removed.append(future)
+
+    def answer_all(self) -> None:
+        for future in self.sent:
+            future.answered = True
+
+
+class FakeNode:
+    def __init__(self) -> None:
+        self.clients: dict[str, FakeClient] = {}
+
+    def create_client(self, _srv_type: object, name: str) -> FakeClient:
+        return self.clients.setdefault(name, FakeClient())
+
+
+class FakeSrv:
+    class Request:
+        pass
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def ready(name: str, pid: int) -> dict[str, ChildInfo]:
+    return {name: ChildInfo(name, pid, ChildState.READY, 0.0, 1.0, 0, None)}
+
+
+def test_a_stopped_process_is_stalled_until_it_runs_and_answers_again() -> None:
+    node, clock = FakeNode(), Clock()
+    checker = LivenessChecker(node, period=1.0, ping_timeout=5.0, clock=clock, srv_type=FakeSrv)
+    with NodeProcess(py("import signal; print('up', flush=True); signal.pause()"), os.environ, ROOT,
+                     "sleeper") as proc:
+        proc.wait_for_output("up")
+        infos = ready("sleeper", proc.pid)
+        assert checker.check(infos) == [] and process_state(proc.pid) in ("S", "R")
+        ping = node.clients["/sleeper/get_parameters"]
+        assert len(ping.sent) == 1
+        os.kill(proc.pid, signal.SIGSTOP)
+        try:
+            wait_state(proc.pid, "T")
+            clock.now += 0.1
+            [stalled] = checker.check(infos)
+            assert stalled.stalled and stalled.pid == proc.pid and "process stopped (state T" in stalled.reason
+            assert checker.stalled() == {"sleeper": clock.now}
+            clock.now += 0.5
+            ping.answer_all()  # an answer to a ping sent before the stall does not count
+            assert checker.check(infos) == []
+        finally:
+            os.kill(proc.pid, signal.SIGCONT)
+        wait_state(proc.pid, "S")
+        clock.now += 0.2
+        assert checker.check(infos) == []  # running, but no answer to a ping sent since the stall
+        clock.now += 1.0
+        assert checker.check(infos) == [] and len(ping.sent) == 2
+        ping.answer_all()
+        clock.now += 0.1
+        [recovered] = checker.check(infos)
+        assert not recovered.stalled and abs(recovered.stalled_for - 1.8) < 1e-9
+        assert checker.stalled() == {} and checker.check(infos) == []
+
+
+def wait_state(pid: int, state: str) -> None:
+    """Block until the child ``pid`` is stopped ("T") or continued ("S"): ``waitid`` reports the
+    change (WNOWAIT leaves it to Popen)."""
+    flag = os.WSTOPPED if state == "T" else os.WCONTINUED
+    os.waitid(os.P_PID, pid, flag | os.WNOWAIT)
+    assert (process_state(pid) in ("T", "t")) == (state == "T")
+
+
+def test_unanswered_pings_make_a_running_node_stalled() -> None:
+    node, clock = FakeNode(), Clock()
+    checker = LivenessChecker(node, period=1.0, ping_timeout=5.0, clock=clock, state=lambda _pid: "S",
+                              srv_type=FakeSrv)
+    infos = ready("world", 42)
+    changes = []
+    for _ in range(12):  # 0 .. 5.5 s after the first check, no answer
+        changes += checker.check(infos)
+        clock.now += 0.5
+    [stalled] = changes
+    assert stalled.stalled and "no answer to /world/get_parameters for 5.0 s" in stalled.reason
+    ping = node.clients["/world/get_parameters"]
+    assert ping.removed == [ping.sent[0]] and len(ping.sent) == 2  # the lost ping was replaced
+    ping.answer_all()
+    [recovered] = checker.check(infos)
+    assert not recovered.stalled
+    # another process of the node starts afresh: no report about the old one
+    assert checker.check(ready("world", 43)) == [] and checker.stalled() == {}
+
+
+def test_a_node_without_parameter_service_is_judged_by_its_process_state() -> None:
+    node, clock = FakeNode(), Clock()
+    states = {"now": "S"}
+    checker = LivenessChecker(node, period=1.0, ping_timeout=5.0, clock=clock, state=lambda _pid: states["now"],
+                              srv_type=FakeSrv)
+    node.create_client(FakeSrv, "/quiet/get_parameters").ready = False
+    infos = ready("quiet", 7)
+    for _ in range(30):
+        assert checker.check(infos) == []
+        clock.now += 1.0
+    states["now"] = "t"
+    assert [c.stalled for c in checker.check(infos)] == [True]
+    states["now"] = "R"
+    assert [c.stalled for c in checker.check(infos)] == [False]
+    with pytest.raises(ValueError, match="ping_timeout"):
+        LivenessChecker(node, period=1.0, ping_timeout=1.0, srv_type=FakeSrv)
+    with pytest.raises(ValueError, match="period"):
+        LivenessChecker(node, period=0.0, srv_type=FakeSrv)
+
+
+def test_liveness_events_are_recorded_for_the_current_ready_process_only(make) -> None:
+    seen: list = []
+    sup = make(ProcessSpec("n", py("import signal; print('up', flush=True); signal.pause()")), on_event=seen.append)
+    sup.wait_for_output("n", "up")
+    pid = sup.info("n").pid
+    assert sup.note("n", pid, ProcessStalled, reason="x") is None  # starting, not ready
+    sup.mark_ready("n", pid)
+    assert sup.note("n", pid + 1, ProcessStalled, reason="x") is None  # another process
+    stalled = sup.note("n", pid, ProcessStalled, reason="process stopped")
+    recovered = sup.note("n", pid, ProcessRecovered, stalled_for=2.0)
+    assert stalled.kind is EventKind.STALLED and stalled.detail == "process stopped"
+    assert recovered.kind is EventKind.RECOVERED and recovered.detail == "responding again after 2.0 s"
+    assert sup.wait_for_event("recovered", "n").index == recovered.index and seen[-2:] == [stalled, recovered]

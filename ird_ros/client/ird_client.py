@@ -20,6 +20,10 @@ Invariants:
 - Every wait spins this client's node (``ird_ros.waits``, no sleeps). A wait that runs out
   raises :class:`ClientTimeout`, or :class:`GraphNotFound` when nothing in the domain offers the
   service or publishes the topic; both name the ROS_DOMAIN_ID searched and how to change it.
+- A call never waits past its timeout, and a request whose server drops out of the graph while it is
+  pending (a node stopped, frozen or starved for the DDS lease, 20 s) is resent when the server is back
+  (``/ird/infer``: the same request gives the same answer) or, if no answer comes within ``lost_grace``
+  s of its return, ends FAILED saying so (:mod:`ird_ros.client.pending`): DDS drops such a request.
 - Service clients use the deep service QoS (``ird_ros.runtime.offload.service_qos``), so a burst
   of requests is answered in full; a request is sent only once its server is discovered (a request
   sent earlier is dropped without an error).
@@ -35,7 +39,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
-from typing import TYPE_CHECKING, Any, Callable, Generic, Iterable, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, TypeVar
 
 import numpy as np
 
@@ -48,13 +52,13 @@ from ird_ros.client.navigation import (
     make_action_client,
     send_goal,
 )
+from ird_ros.client.pending import LOST_GRACE, RESEND_SAFE, PendingCall
 from ird_ros.client.results import (
     CallResult,
     Plan,
     Query,
     RobDrive,
     WorldMessages,
-    decode_answer,
 )
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, ros_context
@@ -104,28 +108,6 @@ def _interface(type_name: str) -> Any:
     """The Python class of ``package/msg/Name`` or ``package/srv/Name``."""
     package, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
-
-
-class PendingCall(Generic[T]):
-    """A request sent and not answered yet: ``done()``, then ``result()``."""
-
-    def __init__(self, service: str, future: Any, decode: Callable[[Any], T] | None) -> None:
-        self.service = service
-        self._future = future
-        self._decode = decode
-
-    def done(self) -> bool:
-        return bool(self._future.done())
-
-    def add_done_callback(self, callback: Callable[[], None]) -> None:
-        """Call ``callback()`` when the answer arrives (while the client's node spins)."""
-        self._future.add_done_callback(lambda _future: callback())
-
-    def result(self) -> CallResult[T]:
-        """The answer; ``RuntimeError`` before it arrived."""
-        if not self._future.done():
-            raise RuntimeError(f"{self.service}: no answer yet")
-        return decode_answer(self.service, self._future.result(), self._decode)
 
 
 def _decode_posterior(response: Any) -> conv.PosteriorData:
@@ -302,19 +284,34 @@ class IrdClient:
         return self._services[service]
 
     def call_async(self, service: str, request: Any, *, decode: Callable[[Any], T] | None = None,
-                   timeout: float = 60.0) -> PendingCall[T]:
-        """Send ``request`` once ``service`` is discovered (within ``timeout``); answer later."""
+                   timeout: float = 60.0, resend: bool | None = None,
+                   lost_grace: float = LOST_GRACE) -> PendingCall[T]:
+        """Send ``request`` once ``service`` is discovered (within ``timeout``); answer later.
+
+        ``resend`` (default: ``service`` in ``RESEND_SAFE``) sends it again when its server drops out
+        and comes back; else the call ends FAILED ``lost_grace`` s after the return without an answer."""
         client = self._client(service)
         self._discover(client.service_is_ready, lambda: f"service {service}", timeout)
-        return PendingCall(service, client.call_async(request), decode)
+        return PendingCall(service, client, request, decode,
+                           resend=service in RESEND_SAFE if resend is None else resend, lost_grace=lost_grace)
+
+    def wait(self, pending: PendingCall[T], *, timeout: float) -> CallResult[T]:
+        """Spin until ``pending`` ends; :class:`ClientTimeout` naming the service, the timeout and the
+        domain (and whether its server dropped out meanwhile) after ``timeout`` s."""
+        try:
+            self.spin_until(pending.done, timeout=timeout, what=f"the answer of {pending.service}")
+        except ClientTimeout as exc:
+            raise ClientTimeout(f"{exc}{pending.drop_note()}") from None
+        return pending.result()
 
     def call(self, service: str, request: Any, *, decode: Callable[[Any], T] | None = None,
-             timeout: float = 120.0) -> CallResult[T]:
+             timeout: float = 120.0, resend: bool | None = None, lost_grace: float = LOST_GRACE) -> CallResult[T]:
         """Call ``service`` and wait for the answer (``timeout`` for discovery and again for the answer);
-        ``decode`` makes the payload of a DONE answer (default: the raw response)."""
-        pending = self.call_async(service, request, decode=decode, timeout=timeout)
-        self.spin_until(pending.done, timeout=timeout, what=f"the answer of {service}")
-        return pending.result()
+        ``decode`` makes the payload of a DONE answer (default: the raw response); ``resend`` and
+        ``lost_grace`` as :meth:`call_async`."""
+        pending = self.call_async(service, request, decode=decode, timeout=timeout, resend=resend,
+                                  lost_grace=lost_grace)
+        return self.wait(pending, timeout=timeout)
 
     def generate_world(self, condition: str = "", seed: int = 0, *, timeout: float = 120.0) -> CallResult[str]:
         """``/world/generate``: a new Lavaland world (docs/spec.md section 5); the value is the node's
@@ -376,8 +373,7 @@ class IrdClient:
         """``/ird/answer``: option ``chosen`` of query ``query_id``; the value is the re-sampled
         posterior given every answer so far (docs/spec.md section 7). ``beta`` 0 = the node's."""
         pending = self.answer_async(query_id, chosen, beta=beta, answered_by=answered_by, timeout=timeout)
-        self.spin_until(pending.done, timeout=timeout, what=f"the answer of {names.SRV_ANSWER}")
-        return pending.result()
+        return self.wait(pending, timeout=timeout)
 
     # ------------------------------------------------------------------ Rob and the designer
 

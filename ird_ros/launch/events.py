@@ -8,6 +8,10 @@ Names follow ``ros2 launch`` where it has one (``respawn``, ``respawn_delay``,
 A child that dies is followed by exactly one of: ``ProcessRespawning`` (it will be started
 again) or, when its spec's ``respawn_max_retries`` restarts are used up, ``ProcessGaveUp``;
 a child without ``respawn`` gets neither.
+
+A ready child that stops responding (``ird_ros.launch.liveness``: its process is stopped, or it
+does not answer a parameter request in time) gets ``ProcessStalled``; the same process
+responding again gets ``ProcessRecovered``. The two alternate, starting with ``ProcessStalled``.
 """
 
 from __future__ import annotations
@@ -34,6 +38,8 @@ __all__ = [
     "ProcessRespawning",
     "ProcessGaveUp",
     "SignalSent",
+    "ProcessStalled",
+    "ProcessRecovered",
     "describe_exit",
 ]
 
@@ -55,6 +61,8 @@ class EventKind(enum.StrEnum):
     GAVE_UP = "gave_up"
     STOPPED = "stopped"
     SIGNALLED = "signalled"
+    STALLED = "stalled"
+    RECOVERED = "recovered"
 
 
 class OutputMode(enum.StrEnum):
@@ -245,3 +253,33 @@ class SignalSent(ProcessEvent):
     @property
     def detail(self) -> str:
         return signal.Signals(self.signal).name
+
+
+@dataclass(frozen=True)
+class ProcessStalled(ProcessEvent):
+    """A ready child stopped responding: ``reason`` says how it was seen."""
+
+    reason: str = ""
+
+    @property
+    def kind(self) -> EventKind:
+        return EventKind.STALLED
+
+    @property
+    def detail(self) -> str:
+        return self.reason
+
+
+@dataclass(frozen=True)
+class ProcessRecovered(ProcessEvent):
+    """A stalled child responds again, ``stalled_for`` seconds after it was seen stalled."""
+
+    stalled_for: float = 0.0
+
+    @property
+    def kind(self) -> EventKind:
+        return EventKind.RECOVERED
+
+    @property
+    def detail(self) -> str:
+        return f"responding again after {self.stalled_for:.1f} s"

@@ -38,6 +38,13 @@ it records, and every latched message the probe received is counted in its bag;
 latched messages the probe receives later. ``wait_ready`` fails with ``LaunchError`` listing,
 per node, what is still missing (or how a process died, with its last output).
 
+Stalls. Every ready node is watched (``ird_ros.launch.liveness``, from the probe's thread): a
+node whose process is stopped (SIGSTOP, a debugger) or that answers no parameter request for
+10 s is reported once as ``[launcher] node NAME (pid N) stalled: <how it was seen>`` with a
+``stalled`` event, and when it responds again as ``... responding again after X s`` with a
+``recovered`` event; ``status_table`` shows ``stalled`` meanwhile. DDS drops requests sent to a
+node that stays stopped for its lease (20 s); ``ird_ros.client.IrdClient`` resends or fails them.
+
 Death and respawn. A child that exits while the graph runs is reported (exit code or
 signal). Nodes in the plan's respawn set are started again after ``respawn_delay`` seconds
 and go through readiness again, at most ``respawn_max_retries`` times each; a node that keeps
@@ -75,6 +82,8 @@ from ird_ros.launch.events import (
     ProcessExited,
     ProcessGaveUp,
     ProcessReady,
+    ProcessRecovered,
+    ProcessStalled,
     describe_exit,
 )
 from ird_ros.launch.plan import RECORDER, LaunchError, LaunchPlan, plan_launch
@@ -91,7 +100,7 @@ RECORDER_SIGKILL_AT = 4.5
 
 Event = ProcessEvent
 """What happened to a node: ``kind`` (an ``EventKind``: started, ready, died, respawning,
-gave_up, stopped, signalled), ``node``, ``pid``, ``detail``, ``index``, ``time``."""
+gave_up, stopped, signalled, stalled, recovered), ``node``, ``pid``, ``detail``, ``index``, ``time``."""
 
 
 class GraphLauncher:
@@ -277,6 +286,10 @@ class GraphLauncher:
         elif isinstance(ev, ProcessGaveUp):
             self._say(f"node {ev.name}: {ev.detail} (respawn_max_retries {self.plan.respawn_max_retries}); "
                       "not respawned again")
+        elif isinstance(ev, ProcessStalled):
+            self._say(f"node {ev.name} (pid {ev.pid}) stalled: {ev.detail}")
+        elif isinstance(ev, ProcessRecovered):
+            self._say(f"node {ev.name} (pid {ev.pid}) {ev.detail}")
         elif isinstance(ev, ProcessReady) and ev.restart:
             self._say(f"node {ev.name} (pid {ev.pid}) ready again after {ev.ready_after:.2f} s "
                       f"(restart {ev.restart})")
@@ -349,6 +362,7 @@ class GraphLauncher:
 
     def status_table(self) -> str:
         infos = self._infos()
+        stalled = self._monitor.stalled() if self._monitor is not None else {}
         rows = [("node", "pid", "state", "ready after", "restarts", "info")]
         for name, c in infos.items():
             ready = f"{c.ready_after:.2f} s" if c.ready_after is not None else "-"
@@ -357,7 +371,8 @@ class GraphLauncher:
                 info = describe_exit(c.returncode)
             elif c.state is ChildState.STARTING:
                 info = "; ".join(self._monitor.missing(name, c.pid)) if self._monitor is not None else ""
-            rows.append((name, str(c.pid or "-"), c.state.value, ready, str(c.restarts), info))
+            state = "stalled" if c.state is ChildState.READY and name in stalled else c.state.value
+            rows.append((name, str(c.pid or "-"), state, ready, str(c.restarts), info))
         widths = [max(len(r[i]) for r in rows) for i in range(5)]
         lines = ["  ".join(r[i].ljust(widths[i]) for i in range(5)) + "  " + r[5] for r in rows]
         return "\n".join(line.rstrip() for line in lines)

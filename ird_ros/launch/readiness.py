@@ -21,7 +21,9 @@ one recorded message; ``recorder_lag`` lists the latched messages still missing 
 
 ``ReadinessMonitor`` runs the probe in a thread next to an ``ird_ros.launch.supervisor.Supervisor``:
 it checks every ``starting`` child, calls ``Supervisor.mark_ready`` once nothing is missing,
-and keeps the recorder's lag up to date after the recorder was ready.
+keeps the recorder's lag up to date after the recorder was ready, and watches every ``ready``
+child for stalls (``ird_ros.launch.liveness``: process stopped, or no answer to a parameter
+request), which it reports to the supervisor as ``ProcessStalled`` / ``ProcessRecovered`` events.
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from ird_ros.graph import names
 from ird_ros.graph.nodes import NodeSpec
-from ird_ros.launch.events import ChildInfo, ChildState
+from ird_ros.launch.events import ChildInfo, ChildState, ProcessRecovered, ProcessStalled
+from ird_ros.launch.liveness import PING_PERIOD, PING_TIMEOUT, LivenessChecker
 from ird_ros.launch.supervisor import Supervisor
 
 __all__ = ["GraphProbe", "ReadinessMonitor", "PROBE_NODE"]
@@ -101,6 +104,11 @@ class GraphProbe:
         self._node.create_subscription(String, names.TOPIC_RECORDER_STATUS, status, QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    @property
+    def node(self) -> Any:
+        """The probe's rclpy node (spun by ``spin_once``; used by the liveness pings)."""
+        return self._node
 
     def spin_once(self, timeout: float) -> None:
         """Handle one ROS event (message, discovery) or return after ``timeout`` s."""
@@ -213,6 +221,7 @@ class ReadinessMonitor:
         skip_ready_topics: children not to wait for on their ``ready_topics``.
         recorder: the recorder's name, if one runs, and ``recorded``: the topics it must record.
         on_change: called (without locks held) after every check that may change an answer.
+        ping_period, ping_timeout: of the liveness checks (``ird_ros.launch.liveness``).
     """
 
     def __init__(
@@ -226,6 +235,8 @@ class ReadinessMonitor:
         recorder: str | None = None,
         recorded: Sequence[str] = (),
         on_change: Callable[[], None] = lambda: None,
+        ping_period: float = PING_PERIOD,
+        ping_timeout: float = PING_TIMEOUT,
     ) -> None:
         self._sup = supervisor
         self._specs = dict(specs)
@@ -234,9 +245,11 @@ class ReadinessMonitor:
         self._recorded = list(recorded)
         self._on_change = on_change
         self._probe = GraphProbe(domain_id, env, recorder_status=recorder is not None)
+        self._liveness = LivenessChecker(self._probe.node, period=ping_period, ping_timeout=ping_timeout)
         self._lock = threading.Lock()
         self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
         self._lag: list[str] = []
+        self._stalled: dict[str, float] = {}
         self._error: BaseException | None = None
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._run, name="readiness", daemon=True)
@@ -267,6 +280,8 @@ class ReadinessMonitor:
                 self._probe.spin_once(0.05)
                 infos = self._sup.infos()
                 self._check([i for i in infos.values() if i.state is ChildState.STARTING])
+                if not self._sup.stopping:
+                    self._report_liveness(infos)
                 rec = infos.get(self._recorder) if self._recorder is not None else None
                 if rec is not None and rec.state is ChildState.READY:
                     lag = self._probe.recorder_lag(self._recorded)
@@ -297,6 +312,21 @@ class ReadinessMonitor:
             if not missing:
                 self._sup.mark_ready(info.name, info.pid)
             self._on_change()
+
+    def _report_liveness(self, infos: Mapping[str, ChildInfo]) -> None:
+        for change in self._liveness.check(infos):
+            if change.stalled:
+                self._sup.note(change.name, change.pid, ProcessStalled, reason=change.reason)
+            else:
+                self._sup.note(change.name, change.pid, ProcessRecovered, stalled_for=change.stalled_for)
+        stalled = self._liveness.stalled()
+        with self._lock:
+            self._stalled = stalled
+
+    def stalled(self) -> dict[str, float]:
+        """Children seen stalled and not recovered (name -> monotonic time seen), as of the last check."""
+        with self._lock:
+            return dict(self._stalled)
 
     def close(self) -> None:
         """End the thread and the probe."""

@@ -42,22 +42,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Callable, Iterable, Mapping, Sequence, TypeVar
 
-from ird_ros.launch.events import (
-    ChildInfo,
-    ChildState,
-    EventKind,
-    OutputChoice,
-    OutputMode,
-    ProcessEvent,
-    ProcessExited,
-    ProcessGaveUp,
-    ProcessReady,
-    ProcessRespawning,
-    ProcessSpec,
-    ProcessStarted,
-    SignalSent,
-    parse_output_mode,
-)
+from ird_ros.launch.events import (ChildInfo, ChildState, EventKind, OutputChoice, OutputMode, ProcessEvent,
+                                   ProcessExited, ProcessGaveUp, ProcessReady, ProcessRespawning, ProcessSpec,
+                                   ProcessStarted, SignalSent, parse_output_mode)
 from ird_ros.launch.process_groups import child_preexec, group_alive
 
 __all__ = ["Supervisor"]
@@ -241,6 +228,17 @@ class Supervisor:
             ev = self._record(ProcessReady, child, ready_after=child.ready_after, restart=child.restarts)
         self._deliver([ev])
         return ev  # type: ignore[return-value]
+
+    def note(self, name: str, pid: int, make: Callable[..., ProcessEvent], **fields: Any) -> ProcessEvent | None:
+        """Record and deliver an event ``make(**fields)`` of the ready process ``pid`` of ``name``
+        (liveness reports); None, and nothing recorded, if ``name`` is no longer that ready process."""
+        with self._cond:
+            child = self._children[name]
+            if child.state is not ChildState.READY or child.proc is None or child.proc.pid != pid:
+                return None
+            ev = self._record(make, child, **fields)
+        self._deliver([ev])
+        return ev
 
     def _spawn(self, child: _Child) -> ProcessEvent:
         """Start a child process (supervisor thread only: PDEATHSIG follows the forking thread).

@@ -1,0 +1,162 @@
+"""Is a ready node still responding? Stall detection for the launcher (issue: a node stopped with
+SIGSTOP looked ready while every request sent to it was lost).
+
+``LivenessChecker.check(infos)`` is called by ``ird_ros.launch.readiness.ReadinessMonitor`` from
+the probe's thread after every spin; for every ``ready`` child it decides:
+
+- **stalled** when its process is stopped (``/proc/<pid>/stat`` state ``T`` or ``t``: SIGSTOP,
+  SIGTSTP, a debugger), seen at the next check; or when it has not answered a parameter
+  request (``/<name>/get_parameters``, served by every rclpy node's executor) for
+  ``ping_timeout`` s (a frozen executor, a process starved of CPU, a node that dropped out of
+  DDS discovery while its process runs);
+- **recovered** when the same process runs again (not stopped) and answered a ping sent after
+  it was seen stalled.
+
+Pings: one outstanding request per node, sent every ``period`` s while the node's parameter
+service is discovered (a request sent while the server is gone is lost, so an unanswered ping is
+replaced, never waited on forever). A node whose parameter service was never seen is judged by
+its process state alone. Each transition is returned once; the two alternate per process,
+stalled first. Nothing here sleeps; the caller's spin paces the checks.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+from ird_ros.launch.events import ChildInfo, ChildState
+
+__all__ = ["LivenessChecker", "Transition", "process_state", "STOPPED_STATES", "PING_PERIOD", "PING_TIMEOUT"]
+
+STOPPED_STATES = frozenset("Tt")
+"""``/proc/<pid>/stat`` states of a process that does not run until continued."""
+PING_PERIOD = 1.0
+"""Seconds between pings of one node."""
+PING_TIMEOUT = 10.0
+"""Seconds without an answered ping after which a running node counts as stalled."""
+
+
+def process_state(pid: int) -> str | None:
+    """The one-letter state of ``pid`` from ``/proc/<pid>/stat`` (``R``, ``S``, ``T``, ...), None if gone."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[0].decode()
+    except (OSError, IndexError):
+        return None
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A change of one process: ``stalled`` True (with ``reason``) or False (recovered after ``stalled_for`` s)."""
+
+    name: str
+    pid: int
+    stalled: bool
+    reason: str = ""
+    stalled_for: float = 0.0
+
+
+@dataclass
+class _Watch:
+    pid: int
+    since: float  # first seen ready
+    answered_at: float  # last answered ping (or ``since``)
+    sent_at: float | None = None
+    future: Any = None
+    served: bool = False  # its parameter service was discovered at least once
+    stalled_at: float | None = None
+
+
+class LivenessChecker:
+    """Stall and recovery detection for ready children (see the module docstring).
+
+    Args:
+        node: an rclpy node (the probe's) that creates the ping clients; spun by the caller.
+        period: seconds between pings of one node.
+        ping_timeout: seconds without an answer after which a running node is stalled.
+        clock: monotonic seconds; state: ``process_state``; srv_type: the ping's service type
+            (default ``rcl_interfaces/srv/GetParameters``); tests pass stand-ins.
+    """
+
+    def __init__(self, node: Any, *, period: float = PING_PERIOD, ping_timeout: float = PING_TIMEOUT,
+                 clock: Callable[[], float] = time.monotonic,
+                 state: Callable[[int], str | None] = process_state, srv_type: Any = None) -> None:
+        if not period > 0.0:
+            raise ValueError(f"period must be > 0 s, got {period!r}")
+        if not ping_timeout > period:
+            raise ValueError(f"ping_timeout must be > period ({period:g} s), got {ping_timeout!r}")
+        self._node = node
+        self.period = float(period)
+        self.ping_timeout = float(ping_timeout)
+        self._clock = clock
+        self._state = state
+        if srv_type is None:
+            from rcl_interfaces.srv import GetParameters as srv_type
+        self._srv_type = srv_type
+        self._clients: dict[str, Any] = {}
+        self._watches: dict[str, _Watch] = {}
+
+    def _client(self, name: str) -> Any:
+        if name not in self._clients:
+            self._clients[name] = self._node.create_client(self._srv_type, f"/{name}/get_parameters")
+        return self._clients[name]
+
+    def check(self, infos: Mapping[str, ChildInfo]) -> list[Transition]:
+        """Ping the ready children and return the stall/recovery transitions since the last call."""
+        now = self._clock()
+        changes: list[Transition] = []
+        for name, info in infos.items():
+            watch = self._watches.get(name)
+            if info.state is not ChildState.READY or info.pid is None:
+                if watch is not None:
+                    self._drop(name, watch)
+                continue
+            if watch is None or watch.pid != info.pid:
+                if watch is not None:
+                    self._drop(name, watch)
+                watch = self._watches[name] = _Watch(info.pid, now, now)
+            change = self._check_one(name, watch, now)
+            if change is not None:
+                changes.append(change)
+        return changes
+
+    def _check_one(self, name: str, watch: _Watch, now: float) -> Transition | None:
+        client = self._client(name)
+        if watch.future is not None and watch.future.done():
+            if watch.sent_at is not None and (watch.stalled_at is None or watch.sent_at >= watch.stalled_at):
+                watch.answered_at = now
+            watch.future = None
+        elif watch.future is not None and now - (watch.sent_at or now) >= self.ping_timeout:
+            client.remove_pending_request(watch.future)  # lost, or never to be answered: ask again
+            watch.future = None
+        if watch.future is None and client.service_is_ready():
+            watch.served = True
+            if watch.sent_at is None or now - watch.sent_at >= self.period:
+                watch.future = client.call_async(self._srv_type.Request())
+                watch.sent_at = now
+        state = self._state(watch.pid)
+        stopped = state in STOPPED_STATES
+        silent = watch.served and now - watch.answered_at >= self.ping_timeout
+        if watch.stalled_at is None:
+            if not (stopped or silent):
+                return None
+            watch.stalled_at = now
+            reason = (f"process stopped (state {state}: SIGSTOP, SIGTSTP or a debugger); requests sent to it "
+                      "now may be lost" if stopped else
+                      f"no answer to /{name}/get_parameters for {now - watch.answered_at:.1f} s "
+                      "(executor blocked, process starved, or out of DDS discovery)")
+            return Transition(name, watch.pid, True, reason=reason)
+        if stopped or state is None or (watch.served and watch.answered_at < watch.stalled_at):
+            return None
+        stalled_for, watch.stalled_at = now - watch.stalled_at, None
+        return Transition(name, watch.pid, False, stalled_for=stalled_for)
+
+    def _drop(self, name: str, watch: _Watch) -> None:
+        if watch.future is not None and not watch.future.done():
+            self._client(name).remove_pending_request(watch.future)
+        del self._watches[name]
+
+    def stalled(self) -> dict[str, float]:
+        """Names of the children stalled now, with the monotonic time each was seen stalled."""
+        return {n: w.stalled_at for n, w in self._watches.items() if w.stalled_at is not None}

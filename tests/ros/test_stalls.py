@@ -1,0 +1,94 @@
+"""A node stopped with SIGSTOP and continued: the launcher says so, and no request is left hanging.
+
+Reproduction (the first test): a request sent to a node that stays stopped for longer than the DDS
+participant lease (20 s) is dropped by DDS: once the client sees the server drop out of the graph
+and the node is continued, the node never answers that request (``resend=False`` below waits
+``LOST_GRACE_TEST`` s for it after the return and then ends FAILED saying so), while the same
+request sent with ``resend=True`` is answered. The launcher reports the stall (process state T)
+and the recovery (a parameter request answered again) as lines and typed events. The second test
+does the same with the real inference node and ``/ird/infer`` (resent by default).
+
+Nothing sleeps: the node stays stopped until the client has seen it drop out (a condition waited
+for with a timeout), then it is continued.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from typing import Any
+
+from _inference_node import small_inference_node
+from _standin_node import STANDIN_SPECS
+
+from ird_ros.apps import call_inference
+from ird_ros.client import CallStatus, IrdClient
+from ird_ros.graph import names
+from ird_ros.graph.domains import DomainLease
+from ird_ros.launch import GraphLauncher
+
+LOST_GRACE_TEST = 5.0
+DROP_TIMEOUT = 60.0  # the lease is 20 s; generous for a loaded machine
+
+
+def _drop_seen(ird: IrdClient, *pending: Any) -> None:
+    ird.spin_until(lambda: all(p.server_dropped for p in pending) or any(p.done() for p in pending),
+                   timeout=DROP_TIMEOUT, what="the client seeing the stopped server drop out of the graph")
+    assert all(p.server_dropped and not p.done() for p in pending)
+
+
+def test_stopped_node_is_reported_and_its_requests_are_resent_or_failed() -> None:
+    from ird_msgs.srv import GenerateWorld
+
+    lines: list[str] = []
+    with GraphLauncher(specs=STANDIN_SPECS, nodes=["world"], private_domain=True, output="quiet",
+                       echo=lines.append) as graph:
+        graph.wait_ready(timeout=90)
+        pid = graph.pids()["world"]
+        with IrdClient(graph.domain_id, node_name="stall_client") as ird:
+            ird.wait_ready(30.0, services=(names.SRV_GENERATE,))
+            assert ird.call(names.SRV_GENERATE, GenerateWorld.Request(), timeout=30.0).response is not None
+            mark = len(graph.events())
+            os.kill(pid, signal.SIGSTOP)
+            try:
+                stalled = graph.wait_for_event("stalled", "world", after=mark, timeout=30.0)
+                assert stalled.pid == pid and "stopped" in stalled.detail
+                assert any(f"node world (pid {pid}) stalled: process stopped" in line for line in lines), lines
+                row = next(r for r in graph.status_table().splitlines() if r.startswith("world "))
+                assert " stalled " in row
+                kept = ird.call_async(names.SRV_GENERATE, GenerateWorld.Request(seed=1), resend=True)
+                lost = ird.call_async(names.SRV_GENERATE, GenerateWorld.Request(seed=2), resend=False,
+                                      lost_grace=LOST_GRACE_TEST)
+                _drop_seen(ird, kept, lost)
+            finally:
+                os.kill(pid, signal.SIGCONT)
+            answered = ird.wait(kept, timeout=60.0)
+            assert answered.response is not None and kept.resends == 1, answered
+            failed = ird.wait(lost, timeout=60.0)
+            # DDS dropped the request: the node never answered it, though it runs again
+            assert failed.status is CallStatus.FAILED and failed.response is None and lost.resends == 0
+            for words in (names.SRV_GENERATE, "dropped out of the graph", f"within {LOST_GRACE_TEST:g} s",
+                          "may have been carried out"):
+                assert words in failed.message, failed.message
+        recovered = graph.wait_for_event("recovered", "world", after=mark, timeout=60.0)
+        assert recovered.pid == pid and recovered.index > stalled.index
+        assert any(f"node world (pid {pid}) responding again after" in line for line in lines), lines
+        assert graph.state("world") == "ready"
+
+
+def test_infer_sent_to_a_stopped_inference_node_is_answered(ros_domain: DomainLease, ros_ctx: Any) -> None:
+    request = call_inference.generated_request(0)
+    request.beta, request.method, request.num_samples = 2.0, "maxent_z", 8
+    with small_inference_node(ros_domain) as proc, \
+            IrdClient(context=ros_ctx, node_name="stall_infer_client", processes=[proc]) as ird:
+        ird.wait_ready(60.0, services=(names.SRV_INFER,))
+        os.kill(proc.pid, signal.SIGSTOP)
+        try:
+            pending = ird.infer_async(request)
+            assert pending.resend  # /ird/infer is resent by default: the same request, the same answer
+            _drop_seen(ird, pending)
+        finally:
+            os.kill(proc.pid, signal.SIGCONT)
+        result = ird.wait(pending, timeout=120.0)
+        assert result.status is CallStatus.DONE, result
+        assert result.unwrap().samples.shape[0] == 8 and pending.resends >= 1
