@@ -1,11 +1,14 @@
-"""The designer's web server without ROS or a browser: state endpoint, live pushes, and the
-checks that keep bad or stale clicks from ever reaching the node's answer callback."""
+"""The designer's web server without ROS or a browser: state endpoint, live pushes, the checks
+that keep bad or stale clicks from ever reaching the node's answer callback, and the caps that
+keep hostile clients from breaking or tying up the server (oversized and deeply nested bodies,
+slowloris connections, oversized WebSocket messages, exceptions in a handler)."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import logging
+import socket
 import threading
 import urllib.error
 import urllib.request
@@ -14,6 +17,7 @@ from typing import Any, Iterator
 import pytest
 import tornado.websocket
 
+from ird_ros.web import limits
 from ird_ros.web.server import WEB_DIR, WebDesigner, is_loopback
 
 WORLD = {"height": 3, "width": 4, "class_names": ["dirt", "grass", "target", "lava"],
@@ -262,3 +266,103 @@ def test_binding_and_arguments(caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.WARNING, logger="ird_ros.web.server"):
         WebDesigner("0.0.0.0", 0, lambda q, c: (True, ""))
     assert any("not loopback" in r.getMessage() for r in caplog.records)
+
+
+# ------------------------------------------------------------------------------ caps
+
+
+def test_an_oversized_body_is_refused_with_413_naming_the_limit(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    padding = "x" * (limits.MAX_BODY_BYTES + 1)
+    status, reply = request(web, "/answer", raw=json.dumps({"query_id": 7, "chosen": 0, "pad": padding}).encode())
+    assert status == 413 and reply["ok"] is False
+    assert reply["message"].startswith("body:") and str(limits.MAX_BODY_BYTES) in reply["message"]
+    # far beyond the limit: refused before the body is read
+    status, reply = request(web, "/answer", raw=b" " * (20 * limits.MAX_BODY_BYTES))
+    assert status == 413 and "64 KiB" in reply["message"]
+    assert node.calls == [] and answer(web, 7, 0)[0] == 200  # a body at the limit is fine, and the server serves
+
+
+@pytest.mark.parametrize("body", [
+    b"[" * 20000 + b"]" * 20000,  # would exhaust json.loads' recursion (was an HTTP 500)
+    b'{"query_id": 7, "chosen": ' + b"[" * (limits.MAX_JSON_DEPTH + 1) + b"]" * (limits.MAX_JSON_DEPTH + 1) + b"}",
+])
+def test_deeply_nested_json_is_refused_with_400_naming_the_limit(web: WebDesigner, node: FakeNode,
+                                                                  body: bytes) -> None:
+    web.show_query(record(7))
+    status, reply = request(web, "/answer", raw=body)
+    assert status == 400 and reply["message"].startswith("body: JSON nested deeper than")
+    assert f"the limit is {limits.MAX_JSON_DEPTH}" in reply["message"]
+    assert node.calls == [] and request(web, "/state")[0] == 200
+
+
+def test_json_depth_counts_brackets_outside_strings_only() -> None:
+    assert limits.json_depth(b"7") == 0 and limits.json_depth(b"{}") == 1
+    assert limits.json_depth(b'{"a": [[1], {"b": []}]}') == 4
+    assert limits.json_depth(b'["[[[[", "\\", "\"[[["]') == 1
+    assert limits.json_depth(b"[" * 100, stop_above=5) == 6
+    at_limit = b"[" * limits.MAX_JSON_DEPTH + b"]" * limits.MAX_JSON_DEPTH
+    limits.check_json_depth(at_limit)
+    with pytest.raises(ValueError, match=f"limit is {limits.MAX_JSON_DEPTH}"):
+        limits.check_json_depth(b"[" + at_limit + b"]")
+
+
+@pytest.fixture
+def impatient(node: FakeNode) -> Iterator[WebDesigner]:
+    server = WebDesigner("127.0.0.1", 0, node, idle_timeout=1.0, body_timeout=1.0)
+    server.start()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def _closed_by_server(web: WebDesigner, first_bytes: bytes) -> bytes:
+    """Send ``first_bytes`` and nothing more; return what the server sent before closing (recv b'').
+    The socket timeout (30 s) only bounds a broken server: the server's own timeout is 1 s."""
+    with socket.create_connection(("127.0.0.1", int(web.url.rsplit(":", 1)[1].strip("/"))), timeout=30) as sock:
+        sock.sendall(first_bytes)
+        received = b""
+        while chunk := sock.recv(4096):
+            received += chunk
+        return received
+
+
+def test_slow_clients_are_disconnected_and_the_server_keeps_serving(impatient: WebDesigner) -> None:
+    # slowloris: part of a header line, then nothing
+    assert _closed_by_server(impatient, b"GET /state HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: a") == b""
+    # a body that never arrives in full
+    head = (b"POST /answer HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            b"Content-Length: 100\r\n\r\n{")
+    assert _closed_by_server(impatient, head) == b""
+    assert request(impatient, "/state")[0] == 200
+
+
+def test_a_failing_handler_is_a_json_500_and_the_server_keeps_serving(web: WebDesigner,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken() -> str:
+        raise RuntimeError("state went away")
+
+    monkeypatch.setattr(web, "state_json", broken)
+    status, reply = request(web, "/state")
+    assert status == 500 and reply == {"ok": False, "message": "internal error: RuntimeError (the server keeps serving)"}
+    monkeypatch.undo()
+    assert request(web, "/state")[0] == 200
+    status, reply = request(web, "/state", host="evil.example")
+    assert status == 403 and reply == {"ok": False, "message": "Host not allowed"}
+
+
+def test_an_oversized_websocket_message_closes_that_socket_only(web: WebDesigner) -> None:
+    async def scenario() -> tuple[Any, Any]:
+        url = web.url.replace("http", "ws") + "ws"
+        conn = await tornado.websocket.websocket_connect(url)
+        await conn.read_message()  # the state
+        await conn.write_message("x" * (limits.MAX_WS_MESSAGE_BYTES + 1))
+        closed = await conn.read_message()  # None: the server closed the socket
+        other = await tornado.websocket.websocket_connect(url)
+        state = await other.read_message()
+        other.close()
+        return closed, conn.close_code, state
+
+    closed, code, state = asyncio.run(asyncio.wait_for(scenario(), 30.0))
+    assert closed is None and code == 1009 and json.loads(state)["world"] == WORLD

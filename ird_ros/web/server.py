@@ -30,6 +30,11 @@ Routes:
   plain HTML form on another site cannot submit an answer.
 - ``GET /ws``: WebSocket; the server sends the whole state after every change.
 
+Caps (``ird_ros.web.limits``): a body over ``max_body`` (64 KiB) is answered 413, JSON nested over
+16 levels 400, both naming the limit; no complete header for ``idle_timeout`` s (slowloris) or no
+body for ``body_timeout`` s: disconnected; WebSocket messages capped and pinged. Every error, a
+handler's exception too, is a JSON ``{"ok": false, "message": ...}`` answer; the server keeps serving.
+
 Why Tornado: HTTP server, WebSockets and static files in one well-kept library with no
 dependencies of its own, and it is already in the venv (a dependency of Dask's distributed).
 
@@ -44,7 +49,6 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import copy
-import ipaddress
 import json
 import logging
 import threading
@@ -56,6 +60,9 @@ import tornado.netutil
 import tornado.web
 import tornado.websocket
 
+from ird_ros.web import limits
+from ird_ros.web.limits import host_of, is_loopback, parse_answer
+
 __all__ = ["WebDesigner", "OnAnswer", "WEB_DIR", "is_loopback"]
 
 #: Static assets of the page: only these files are served (never the server's own code).
@@ -63,27 +70,6 @@ WEB_DIR = Path(__file__).resolve().parent / "static"
 
 #: The node's answer callback: ``(query_id, chosen) -> (ok, message)``; blocks until answered.
 OnAnswer = Callable[[int, int], "tuple[bool, str]"]
-
-_LOOPBACK_NAMES = frozenset({"localhost", "localhost.localdomain"})
-
-
-def is_loopback(host: str) -> bool:
-    """True for a loopback host name or address (127.0.0.0/8, ::1, localhost)."""
-    name = host.strip().strip("[]").lower()
-    if name in _LOOPBACK_NAMES:
-        return True
-    try:
-        return ipaddress.ip_address(name).is_loopback
-    except ValueError:
-        return False
-
-
-def _host_of(header: str) -> str:
-    """The host part of an HTTP ``Host`` header (``name``, ``name:port``, ``[v6]:port``)."""
-    if header.startswith("["):
-        return header[1 : header.find("]")] if "]" in header else header
-    return header.rsplit(":", 1)[0] if header.count(":") == 1 else header
-
 
 def _option_letter(index: int) -> str:
     return chr(ord("A") + index) if 0 <= index < 26 else str(index)
@@ -145,28 +131,9 @@ class _State:
         return None
 
 
-def _parse_answer(body: bytes) -> tuple[int, int]:
-    """``(query_id, chosen)`` of a JSON answer body; ValueError naming the bad field."""
-    try:
-        data = json.loads(body or b"null")
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(f"body: not JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise ValueError('body: expected a JSON object {"query_id": int, "chosen": int}')
-    values = []
-    for field in ("query_id", "chosen"):
-        value = data.get(field)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"{field}: expected an integer, got {value!r}")
-        if not 0 <= value < 2**32:
-            raise ValueError(f"{field}: {value} is out of range (0..2^32-1)")
-        values.append(value)
-    return values[0], values[1]
-
-
 def _check_host(handler: Any) -> None:
     """Refuse a request whose Host is not a loopback name while bound to loopback."""
-    if handler.web.loopback_only and not is_loopback(_host_of(handler.request.host)):
+    if handler.web.loopback_only and not is_loopback(host_of(handler.request.host)):
         raise tornado.web.HTTPError(403, reason="Host not allowed")
 
 
@@ -183,6 +150,21 @@ class _Handler(tornado.web.RequestHandler):
         self.set_header("Cache-Control", "no-store")
         self.set_header("X-Content-Type-Options", "nosniff")
 
+    def _reply(self, status: int, ok: bool, message: str) -> None:
+        self.set_status(status)
+        self.set_header("Content-Type", "application/json")
+        self.write(json.dumps({"ok": ok, "message": message}))
+
+    def write_error(self, status_code: int, **kwargs: Any) -> None:
+        """Every error as JSON ``{"ok": false, "message": ...}`` (a handler's exception included)."""
+        exc = kwargs.get("exc_info", (None, None, None))[1]
+        message = (exc.log_message if isinstance(exc, tornado.web.HTTPError) else None) or self._reason
+        if exc is not None and not isinstance(exc, tornado.web.HTTPError):
+            message = f"internal error: {type(exc).__name__} (the server keeps serving)"
+            self.web.log.error(f"designer web page: {self.request.method} {self.request.path} raised {exc!r}")
+        self._reply(status_code, False, message)
+        self.finish()
+
 
 class _PageHandler(_Handler):
     def get(self) -> None:
@@ -196,21 +178,38 @@ class _StateHandler(_Handler):
         self.write(self.web.state_json())
 
 
+@tornado.web.stream_request_body
 class _AnswerHandler(_Handler):
+    """``POST /answer``; the body is streamed in and kept only up to ``max_body`` bytes, then
+    answered 413 (read to its end first, so the client gets the answer, not a reset)."""
+
     def check_xsrf_cookie(self) -> None:
         # Cross-site forms cannot send JSON; the Content-Type check below replaces a cookie.
         return None
 
-    def _reply(self, status: int, ok: bool, message: str) -> None:
-        self.set_status(status)
-        self.set_header("Content-Type", "application/json")
-        self.write(json.dumps({"ok": ok, "message": message}))
+    def prepare(self) -> None:
+        super().prepare()
+        self._chunks: list[bytes] = []
+        self._size = 0
+        length = self.request.headers.get("Content-Length", "")
+        if length.isdigit() and int(length) > self.web.max_body * 16:  # not worth reading: refuse now
+            raise tornado.web.HTTPError(413, self._too_large())
+
+    def _too_large(self) -> str:
+        return f"body: larger than {self.web.max_body} bytes (the limit is {self.web.max_body // 1024} KiB)"
+
+    def data_received(self, chunk: bytes) -> None:
+        self._size += len(chunk)
+        if self._size <= self.web.max_body:
+            self._chunks.append(chunk)
 
     async def post(self) -> None:
+        if self._size > self.web.max_body:
+            return self._reply(413, False, self._too_large())
         if self.request.headers.get("Content-Type", "").split(";")[0].strip() != "application/json":
             return self._reply(415, False, "Content-Type: answers must be sent as application/json")
         try:
-            query_id, chosen = _parse_answer(self.request.body)
+            query_id, chosen = parse_answer(b"".join(self._chunks))
         except ValueError as exc:
             return self._reply(400, False, str(exc))
         status, ok, message = await self.web.answer(query_id, chosen)
@@ -245,16 +244,24 @@ class WebDesigner:
             server for each click that passed the server's checks; it may block.
         logger: anything with ``info``/``warning``/``error`` (an rclpy logger), default
             ``logging.getLogger(__name__)``.
+        max_body, idle_timeout, body_timeout: the caps of ``ird_ros.web.limits`` (bytes, seconds).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, on_answer: OnAnswer | None = None,
-                 logger: Any = None) -> None:
+                 logger: Any = None, *, max_body: int = limits.MAX_BODY_BYTES,
+                 idle_timeout: float = limits.IDLE_TIMEOUT, body_timeout: float = limits.BODY_TIMEOUT) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
             raise ValueError(f"port: expected an integer in 0..65535, got {port!r}")
         if not isinstance(host, str) or not host:
             raise ValueError(f"host: expected a host name or address, got {host!r}")
         if on_answer is None:
             raise ValueError("on_answer: a callback (query_id, chosen) -> (ok, message) is required")
+        for name, value in (("idle_timeout", idle_timeout), ("body_timeout", body_timeout), ("max_body", max_body)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name}: expected a number > 0, got {value!r}")
+        self.max_body = int(max_body)
+        self.idle_timeout = float(idle_timeout)
+        self.body_timeout = float(body_timeout)
         self.host = host
         self.port = port
         self.on_answer = on_answer
@@ -304,8 +311,11 @@ class WebDesigner:
             (r"/answer", _AnswerHandler, {"web": self}),
             (r"/ws", _SocketHandler, {"web": self}),
             (r"/static/(.*)", tornado.web.StaticFileHandler, {"path": str(WEB_DIR)}),
-        ], websocket_ping_interval=20)
-        self._server = tornado.httpserver.HTTPServer(app)
+        ], websocket_ping_interval=limits.WS_PING_INTERVAL, websocket_ping_timeout=limits.WS_PING_TIMEOUT,
+            websocket_max_message_size=limits.MAX_WS_MESSAGE_BYTES)
+        self._server = tornado.httpserver.HTTPServer(
+            app, idle_connection_timeout=self.idle_timeout, body_timeout=self.body_timeout,
+            max_body_size=self.max_body * 16, max_header_size=limits.MAX_HEADER_BYTES)
         self._server.add_sockets(sockets)
         loop.call_soon(ready.set)
         try:
