@@ -22,8 +22,13 @@ Parameters (node ``recorder``; types and defaults in ``PARAMETERS``):
 - ``queue_depth``: history depth of the recording subscriptions.
 - ``flush_period`` (seconds, 0 = off): how often the bag is checkpointed
   (``ird_ros.bags.repair.checkpoint``): the buffered messages go to disk as a finished chunk
-  followed by a provisional MCAP end, fsynced, and ``metadata.yaml`` is rewritten. A SIGKILL
-  (or a crash of the machine) then loses only what arrived since the last checkpoint.
+  followed by a provisional MCAP end, fsynced, and ``metadata.yaml`` is rewritten. Checkpoints
+  run in a thread of their own on a monotonic deadline (every ``flush_period`` s from the
+  previous one's start), so a busy executor cannot delay them (a ROS timer could: under load one
+  was seen 0.6 s late). Bound (``loss_bound``): a SIGKILL (or a crash of the machine) loses only
+  the messages the recorder received in the last ``flush_period + CHECKPOINT_ALLOWANCE`` s,
+  plus those DDS had not delivered to it yet (under CPU load the recorder may lag behind the
+  publishers; that lag is not the recorder's to bound).
 
 A topic is subscribed once a publisher of it is seen (its type is taken from the graph),
 with the publishers' QoS: transient local when every publisher offers transient local (so
@@ -77,7 +82,8 @@ from ird_ros.bags.storage import register_type
 from ird_ros.graph import names
 from ird_ros.runtime.node_params import Param, declare_all
 
-__all__ = ["RecorderError", "RecorderNode", "PARAMETERS", "find_installed_msg", "main"]
+__all__ = ["RecorderError", "RecorderNode", "PARAMETERS", "CHECKPOINT_ALLOWANCE", "loss_bound", "find_installed_msg",
+           "main"]
 
 NODE_NAME = names.NODE_RECORDER
 PARAMETERS: dict[str, Param] = {
@@ -88,6 +94,16 @@ PARAMETERS: dict[str, Param] = {
     "queue_depth": Param(1000, "History depth of the recording subscriptions"),
     "flush_period": Param(0.5, "Seconds between checkpoints of the bag: at most this much is lost to a SIGKILL (0 = off)"),
 }
+CHECKPOINT_ALLOWANCE = 0.25
+"""Seconds allowed for one checkpoint (chunk, metadata.yaml, fsync: about 4 ms when idle) plus the
+checkpoint thread's wake-up under CPU load."""
+
+
+def loss_bound(flush_period: float) -> float:
+    """Seconds before a SIGKILL within which a received message may be missing from the bag."""
+    return float(flush_period) + CHECKPOINT_ALLOWANCE
+
+
 STATUS_TOPIC = names.TOPIC_RECORDER_STATUS
 """std_msgs/String, latched: JSON ``{"output_dir": ..., "counts": {topic: messages}}``."""
 
@@ -199,6 +215,8 @@ class RecorderNode(Node):
         self.output_dir.parent.mkdir(parents=True, exist_ok=True)
 
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
+        # The writer is used by the executor's callbacks and by the checkpoint thread: one at a time.
+        self._writer_lock = threading.Lock()
         self.writer: Writer | None = Writer(self.output_dir, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.open()
         checkpoint(self.writer)  # metadata.yaml and a readable (empty) MCAP from the start
@@ -218,8 +236,12 @@ class RecorderNode(Node):
         self._discover()
         period = float(self.get_parameter("discovery_period").value)
         self._discovery_timer = self.create_timer(max(period, 0.02), self._discover)
-        flush = float(self.get_parameter("flush_period").value)
-        self._flush_timer = self.create_timer(flush, self.flush) if flush > 0 else None
+        self.flush_period = float(self.get_parameter("flush_period").value)
+        self._flush_stop = threading.Event()
+        self._flush_thread: threading.Thread | None = None
+        if self.flush_period > 0:
+            self._flush_thread = threading.Thread(target=self._checkpoints, name="recorder-checkpoints", daemon=True)
+            self._flush_thread.start()
         what = ", ".join(self.topics) if self.topics else "all topics"
         self.get_logger().info(f"recording {what} into {self.output_dir} (rosbag2 v9, MCAP)")
 
@@ -263,12 +285,13 @@ class RecorderNode(Node):
             self.get_logger().error(f"not recording {topic}: type {msgtype} unavailable ({exc})")
             return
         profiles = [i.qos_profile for i in infos]
-        assert self.writer is not None
-        conn = self.writer.add_connection(
-            topic, msgtype, typestore=self.typestore, offered_qos_profiles=[_bag_qos(p) for p in profiles]
-        )
+        with self._writer_lock:
+            assert self.writer is not None
+            conn = self.writer.add_connection(
+                topic, msgtype, typestore=self.typestore, offered_qos_profiles=[_bag_qos(p) for p in profiles]
+            )
+            self._dirty = True  # the next checkpoint lists the topic in metadata.yaml
         self._recording_conns[topic] = conn
-        self._dirty = True  # the next checkpoint lists the topic in metadata.yaml
         self.counts[topic] = 0
         qos = subscription_qos(profiles, self.depth)
         self._recording_subs[topic] = self.create_subscription(
@@ -282,11 +305,12 @@ class RecorderNode(Node):
         subscribed = time.monotonic()
 
         def callback(data: bytes) -> None:
-            if self.writer is None:
-                return
-            self.writer.write(conn, self.get_clock().now().nanoseconds, data)
+            with self._writer_lock:
+                if self.writer is None:
+                    return
+                self.writer.write(conn, self.get_clock().now().nanoseconds, data)
+                self._dirty = True
             self.counts[topic] += 1
-            self._dirty = True
             if self.counts[topic] == 1:
                 self.get_logger().info(
                     f"first message on {topic}, {time.monotonic() - subscribed:.2f} s after subscribing")
@@ -307,18 +331,33 @@ class RecorderNode(Node):
 
     def flush(self) -> None:
         """Checkpoint the bag if anything changed (rosbags keeps up to 1 MiB in memory)."""
-        if self.writer is None or not self._dirty:
-            return
-        checkpoint(self.writer)
-        self._dirty = False
+        with self._writer_lock:
+            if self.writer is None or not self._dirty:
+                return
+            checkpoint(self.writer)
+            self._dirty = False
+
+    def _checkpoints(self) -> None:
+        """The checkpoint thread: ``flush()`` every ``flush_period`` s from the previous start."""
+        due = time.monotonic() + self.flush_period
+        while not self._flush_stop.wait(max(0.0, due - time.monotonic())):
+            try:
+                self.flush()
+            except Exception as exc:  # noqa: BLE001 - a failed checkpoint is logged; recording goes on
+                self.get_logger().error(f"checkpoint of {self.output_dir} failed: {exc!r}")
+            due = max(due + self.flush_period, time.monotonic())
 
     def close(self) -> dict[str, int]:
-        """Close the bag (index, summary, metadata.yaml); idempotent. Returns the counts."""
+        """Stop the checkpoints, close the bag (index, summary, metadata.yaml); idempotent. Returns the counts."""
+        self._flush_stop.set()
+        if self._flush_thread is not None:
+            self._flush_thread.join()
         if self.writer is not None:
-            writer, self.writer = self.writer, None
             for sub in self._recording_subs.values():
                 self.destroy_subscription(sub)
-            close_writer(writer)
+            with self._writer_lock:
+                writer, self.writer = self.writer, None
+                close_writer(writer)
         return dict(self.counts)
 
     def summary(self) -> str:
@@ -336,9 +375,8 @@ def _drain(executor: SingleThreadedExecutor, node: RecorderNode, max_seconds: fl
     # starved process: SIGINT lands with status/discovery timers due) the first pass ran a
     # timer, recorded nothing and ended the drain with messages still queued (the last
     # /rob/status and /odom of a run went missing from the bag).
-    for timer in (node._status_timer, node._discovery_timer, node._flush_timer):
-        if timer is not None:
-            node.destroy_timer(timer)
+    for timer in (node._status_timer, node._discovery_timer):
+        node.destroy_timer(timer)
     deadline = time.monotonic() + max_seconds
     while time.monotonic() < deadline:
         before = sum(node.counts.values())
