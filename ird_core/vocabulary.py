@@ -17,6 +17,8 @@ __all__ = [
     "PlanMode",
     "Baseline",
     "RiskStatistic",
+    "ProxyCounts",
+    "RiskMeasure",
     "QueryStrategy",
     "Condition",
     "QueryEvent",
@@ -25,6 +27,8 @@ __all__ = [
     "MODES",
     "BASELINES",
     "STATISTICS",
+    "PROXY_COUNTS",
+    "RISK_MEASURES",
     "STRATEGIES",
     "CONDITIONS",
     "ALL_CONDITIONS",
@@ -65,6 +69,25 @@ class RiskStatistic(StrEnum):
 
     STD = "std"
     RANGE = "range"
+
+
+class ProxyCounts(StrEnum):
+    """How a reward's behaviour in a training MDP is summarised by the IRD observation model
+    (docs/spec.md section 3): the feature counts of its optimal path (the paper's Sample-Z
+    wording), or its MaxEnt expected counts at the designer's temperature."""
+
+    OPTIMAL = "optimal"
+    MAXENT = "maxent"
+
+
+class RiskMeasure(StrEnum):
+    """The statistic over posterior samples that a risk-averse plan maximises (docs/spec.md
+    section 4): the worst sample, the conditional value at risk at level alpha (the mean of the
+    worst alpha share; alpha = 1/K is the min, alpha = 1 the mean), or mean - lambda * sd."""
+
+    MIN = "min"
+    CVAR = "cvar"
+    MEAN_SD = "mean_sd"
 
 
 class QueryStrategy(StrEnum):
@@ -124,6 +147,8 @@ METHODS: tuple[str, ...] = values(ZMethod)
 MODES: tuple[str, ...] = values(PlanMode)
 BASELINES: tuple[str, ...] = values(Baseline)
 STATISTICS: tuple[str, ...] = values(RiskStatistic)
+PROXY_COUNTS: tuple[str, ...] = values(ProxyCounts)
+RISK_MEASURES: tuple[str, ...] = values(RiskMeasure)
 STRATEGIES: tuple[str, ...] = values(QueryStrategy)
 ALL_CONDITIONS: tuple[str, ...] = values(Condition)
 CONDITIONS: tuple[str, ...] = ALL_CONDITIONS[:4]

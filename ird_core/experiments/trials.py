@@ -62,7 +62,10 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from ird_core import mcmc, mdp, planning, posterior
-from ird_core.vocabulary import Baseline, PlanMode, ZMethod
+from ird_core.experiments.controls import control_results, frontier_results
+from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
+from ird_core.planning.risk_measures import check_risk
+from ird_core.vocabulary import PROXY_COUNTS, Baseline, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland, world_file
 
 __all__ = [
@@ -78,6 +81,8 @@ __all__ = [
     "TrialResult",
     "trial_seed",
     "trial_instance",
+    "trial_posterior",
+    "outcome",
     "make_specs",
     "run_trial",
     "TRIAL_COLUMNS",
@@ -217,6 +222,12 @@ class TrialSpec:
     z_methods: tuple[str, ...] = Z_METHODS
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
+    counts: str = "maxent"  # the observation model's counts (posterior.ObservationModel)
+    temperature: float = 1.0  # the MaxEnt designer's temperature (counts "maxent")
+    risk: str = "min"  # the main IRD planner's risk measure
+    risk_level: float = math.nan  # its level (alpha of cvar, lambda of mean_sd)
+    frontier: bool = False  # plan every risk level of FRONTIER_RISKS from every posterior
+    controls: bool = False  # the control planners and posteriors (ird_core.experiments.controls)
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
         4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
         check_every=CHECK_EVERY,
@@ -230,9 +241,21 @@ class TrialSpec:
         for method in self.z_methods:
             if method not in Z_METHODS:
                 raise ValueError(f"z_methods must be drawn from {Z_METHODS}, got {method!r}")
+        if self.counts not in PROXY_COUNTS:
+            raise ValueError(f"counts must be one of {PROXY_COUNTS}, got {self.counts!r}")
+        self.observation_model()
+        check_risk(self.risk, None if self.risk == "min" else self.risk_level)
         limit = self.traj_work_limit
         if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
             raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
+
+    def observation_model(self, counts: str = "", own_term: bool = True) -> posterior.ObservationModel:
+        """The posteriors' observation model (``counts`` overrides the spec's)."""
+        return posterior.ObservationModel(counts or self.counts, self.temperature, own_term)
+
+    def main_risk(self) -> dict:
+        """``plan_path``'s risk keywords of the main IRD planner."""
+        return {"risk": self.risk, "risk_level": None if self.risk == "min" else self.risk_level}
 
     def sampler(self, method: str) -> SamplerSettings:
         """``method``'s sampler settings: its own field if set, else the shared ones."""
@@ -244,29 +267,6 @@ class TrialSpec:
 QUICK: dict = {"size": 8, "horizon": 12, "obs_dim": 10, "num_samples": 64, "num_chains": 4, "warmup": 50, "thin": 4,
                "max_leapfrog": 16, "num_proxy_samples": 100, "factorial_samples": 10, "traj_work_limit": 1_000_000,
                "sample_z_sampler": None, "maxent_z_sampler": None}
-
-
-@dataclass(frozen=True)
-class TrialResult:
-    """One planner's outcome in one trial."""
-
-    experiment: str  # "main" or "factorial"
-    condition: str
-    seed: int
-    planner: str  # "literal", "ird_sample_z", ... or "sample_z/per_step/log_z"
-    z_approx: str  # "" for literal
-    granularity: str  # "literal", "per_step" or "trajectory"
-    baseline: str  # "none" for literal
-    touched_lava: bool
-    reached_target: bool
-    true_return: float
-    objective: float
-    solver: str
-    fallback: bool
-    infer_seconds: float
-    r_hat_max: float
-    acceptance_rate: float
-    cells: tuple[tuple[int, int], ...]
 
 
 def trial_seed(base_seed: int, index: int) -> int:
@@ -284,27 +284,22 @@ def _derived_seed(seed: int, *keys: int) -> int:
     return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0])
 
 
-def _outcome(inst: lavaland.LavalandInstance, cells: Sequence[tuple[int, int]]) -> tuple[bool, bool, float]:
-    """(touched lava, reached a target, true return; NaN without true rewards) of a path."""
-    labels = inst.test_labels
-    rewards = inst.true_terrain_reward
-    return evaluation.touches_lava(labels, cells), evaluation.reaches_target(labels, cells), \
-        (math.nan if rewards is None else evaluation.true_return(labels, cells, rewards))
-
-
-def _posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str) -> posterior.Posterior:
-    """The joint posterior over the instance's training worlds (one for Lavaland)."""
+def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str,
+                    model: "posterior.ObservationModel | None" = None) -> posterior.Posterior:
+    """The joint posterior over the instance's training worlds (one for Lavaland), under the
+    spec's observation model or ``model`` (the controls' other readings: same seeds)."""
+    model = spec.observation_model() if model is None else model
     method_index = Z_METHODS.index(method) + 1
     sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
     observations = posterior.proxy_observations(
         inst, spec.num_proxy_samples if method == ZMethod.SAMPLE_Z else None, _derived_seed(spec.seed, 100),
-        spec.prior_sigma)
+        spec.prior_sigma, observation_model=model)
     settings = spec.sampler(method).for_dim(observations[0].dim)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per trial instead
         return posterior.sample_joint_posterior(
             observations, spec.beta, method, spec.num_samples, sampler_seed, spec.prior_sigma,
-            **settings.options())
+            observation_model=model, **settings.options())
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
@@ -321,7 +316,7 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
     results: list[TrialResult] = []
     literal = planning.plan_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights[None], "literal")
     results.append(TrialResult("main", spec.condition, spec.seed, "literal", "", "literal", "none",
-                               *_outcome(inst, literal.cells), literal.objective, literal.solver, False,
+                               *outcome(inst, literal.cells), literal.objective, literal.solver, False,
                                0.0, math.nan, math.nan, literal.cells))
     test = lavaland.test_mdp(inst)
     if inst.true_terrain_reward is not None:
@@ -329,23 +324,27 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
         cells, value = mdp.optimal_path(test, true_cells)
         oracle = tuple((int(r), int(c)) for r, c in cells)
         results.append(TrialResult("main", spec.condition, spec.seed, "oracle", "", "oracle", "none",
-                                   *_outcome(inst, oracle), value, "dp", False, 0.0, math.nan, math.nan, oracle))
-    reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+                                   *outcome(inst, oracle), value, "dp", False, 0.0, math.nan, math.nan, oracle))
+    reference = posterior.proxy_feature_expectations(inst, spec.observation_model()) / (inst.train_horizon + 1)
     for method in spec.z_methods:
         t0 = time.perf_counter()
-        post = _posterior(spec, inst, method)
+        post = trial_posterior(spec, inst, method)
         seconds = time.perf_counter() - t0
         diag = (seconds, post.r_hat_max, post.acceptance_rate)
-        main = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference)
+        main = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
         results.append(TrialResult("main", spec.condition, spec.seed, f"ird_{method}", method,
-                                   MAIN_GRANULARITY, MAIN_BASELINE, *_outcome(inst, main.cells),
+                                   MAIN_GRANULARITY, MAIN_BASELINE, *outcome(inst, main.cells),
                                    main.objective, main.solver, False, *diag, main.cells))
+        if spec.frontier:
+            results += frontier_results(spec, inst, method, post, reference, diag)
         if spec.factorial:
             plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_work_limit)
             for (gran, base), (plan, fallback) in plans.items():
                 results.append(TrialResult("factorial", spec.condition, spec.seed, f"{method}/{gran}/{base}",
-                                           method, gran, base, *_outcome(inst, plan.cells), plan.objective,
+                                           method, gran, base, *outcome(inst, plan.cells), plan.objective,
                                            plan.solver, fallback, *diag, plan.cells))
+    if spec.controls:
+        results += control_results(spec, inst, reference, lambda method, model: trial_posterior(spec, inst, method, model))
     return results
 
 
@@ -364,10 +363,3 @@ def _factorial_plans(test: mdp.GridMDP, samples: np.ndarray, reference: np.ndarr
         except RuntimeError:
             plans[PlanMode.TRAJECTORY, base] = (plans[PlanMode.PER_STEP, base][0], True)
     return plans
-
-
-#: The columns of ``trials.csv``: :class:`TrialResult`'s fields.
-TRIAL_COLUMNS: tuple[str, ...] = (
-    "experiment", "condition", "seed", "planner", "z_approx", "granularity", "baseline",
-    "touched_lava", "reached_target", "true_return", "objective", "solver", "fallback",
-    "infer_seconds", "r_hat_max", "acceptance_rate", "cells")

@@ -11,6 +11,7 @@ from ird_core.mdp.grid import (
     successor_table,
     validate_path,
 )
+from ird_core.mdp.optimal_paths import optimal_feature_counts, optimal_paths, optimal_returns
 from ird_core.mdp.passes import (
     expected_visitation,
     feature_expectations,
@@ -32,6 +33,9 @@ __all__ = [
     "feature_expectations",
     "hard_values",
     "optimal_path",
+    "optimal_paths",
+    "optimal_feature_counts",
+    "optimal_returns",
     "successor_table",
     "path_features",
     "path_return",

@@ -4,11 +4,18 @@ Given ``K`` posterior samples ``w_i`` (a ``(K, d)`` batch) and a test map, a pla
 path of ``T + 1`` cells from the start and the exact value of the objective it maximises:
 
 - ``literal``    ``sum_t (w . F[s_t] - b)`` for one weight vector (the proxy); ``K`` must be 1.
-- ``per_step``   ``sum_t min_i (w_i . F[s_t] - b_i)``: a per-cell reward, solved by exact DP.
-- ``trajectory`` ``min_i (w_i . phi(xi) - (T + 1) b_i)``: not an MDP; solved exactly, by default
-  with a branch and bound over the time-expanded graph whose bounds are exact DPs
-  (``"label-bb"``), or as a mixed-integer program over unit flows in that graph with HiGHS
-  (``"milp-highs"``). The solver lives in :mod:`ird_core.planning.trajectory_solver`.
+- ``per_step``   ``sum_t rho_i (w_i . F[s_t] - b_i)``: a per-cell reward, solved by exact DP.
+- ``trajectory`` ``rho_i (w_i . phi(xi) - (T + 1) b_i)``: not an MDP; for the min solved
+  exactly, by default with a branch and bound over the time-expanded graph whose bounds are
+  exact DPs (``"label-bb"``), or as a mixed-integer program over unit flows in that graph with
+  HiGHS (``"milp-highs"``), in :mod:`ird_core.planning.trajectory_solver`; for CVaR as the
+  Rockafellar-Uryasev MILP of :mod:`ird_core.planning.trajectory_cvar` (``"milp-cvar"``).
+
+``rho`` is the risk measure (:mod:`ird_core.planning.risk_measures`): ``min`` (the paper's
+appendix, the default), ``cvar`` at level ``alpha`` (``alpha <= 1/K``: the min; 1: the mean,
+i.e. planning on the posterior mean reward, risk-neutral) or ``mean_sd`` with ``lambda``
+(per step only: its trajectory form is not concave). Samples may carry probabilities
+(``sample_weights``, e.g. a posterior re-weighted by a hypothetical answer).
 
 Per-step reward baselines ``b_i`` (:func:`reward_baselines`):
 
@@ -42,10 +49,12 @@ import numpy as np
 from ird_core.checks import MAX_ABS_FEATURE, check_magnitude
 from ird_core.mdp import GridMDP, log_partition, optimal_path, validate_path
 from ird_core.planning.arguments import check_plan_arguments, check_reference, check_weights
+from ird_core.planning.risk_measures import MIN_RISK, Risk, check_risk, check_sample_weights, risk_statistic
+from ird_core.planning.trajectory_cvar import plan_trajectory_cvar
 from ird_core.planning.trajectory_bounds import states_to_cells
 from ird_core.planning.trajectory_limits import OutOfTime
 from ird_core.planning.trajectory_solver import plan_trajectory
-from ird_core.vocabulary import Baseline, PlanMode, parse
+from ird_core.vocabulary import Baseline, PlanMode, RiskMeasure, parse
 
 __all__ = [
     "Plan",
@@ -73,6 +82,7 @@ class Plan:
             proven (DP, completed label search; for the MILP the smaller of the DP bounds and
             HiGHS's dual bound, at least ``objective``). Larger only in
             :class:`PlanningTimeout`'s plan.
+        risk: the risk measure and level the objective uses (``min`` for ``literal``).
     """
 
     cells: tuple[tuple[int, int], ...]
@@ -81,6 +91,7 @@ class Plan:
     baseline: str
     solver: str
     bound: float = math.nan
+    risk: Risk = MIN_RISK
 
 
 class PlanningTimeout(RuntimeError):
@@ -168,27 +179,41 @@ def path_objective(
     mode: str,
     baseline: str = "none",
     reference_features: np.ndarray | None = None,
+    *,
+    risk: str = "min",
+    risk_level: float | None = None,
+    sample_weights: np.ndarray | None = None,
 ) -> float:
     """The objective of ``mode`` evaluated exactly on a legal path.
 
-    ``literal``: ``w . phi - (T + 1) b``; ``per_step``: ``sum_t min_i (w_i . F[s_t] - b_i)``;
-    ``trajectory``: ``min_i (w_i . phi - (T + 1) b_i)``.
+    ``literal``: ``w . phi - (T + 1) b``; ``per_step``: ``sum_t rho_i (w_i . F[s_t] - b_i)``;
+    ``trajectory``: ``rho_i (w_i . phi - (T + 1) b_i)``, ``rho`` the risk measure.
 
     Args:
         cells: ``T + 1`` ``(row, col)`` cells starting at the start.
         weights: ``(K, d)`` (``K = 1`` for ``literal``).
+        risk, risk_level, sample_weights: as :func:`plan_path`.
     """
     w = check_plan_arguments(mode, baseline, weights, mdp.num_features, reference_features)
     assert w is not None
-    return _objective(mdp, validate_path(mdp, cells), w, reward_baselines(mdp, w, baseline, reference_features), mode)
+    measure = check_risk(risk, risk_level)
+    p = check_sample_weights(sample_weights, len(w))
+    return _objective(mdp, validate_path(mdp, cells), w, reward_baselines(mdp, w, baseline, reference_features), mode,
+                      measure, p)
 
 
-def _objective(mdp: GridMDP, path: np.ndarray, w: np.ndarray, b: np.ndarray, mode: str) -> float:
+def _objective(mdp: GridMDP, path: np.ndarray, w: np.ndarray, b: np.ndarray, mode: str,
+               risk: Risk = MIN_RISK, p: "np.ndarray | None" = None) -> float:
     """:func:`path_objective` for a checked ``(T + 1, 2)`` path, ``w`` ``(K, d)``, ``b`` ``(K,)``."""
     visited = mdp.features[path[:, 0], path[:, 1]]  # (T+1, d)
     if mode == PlanMode.PER_STEP:
-        return float((visited @ w.T - b).min(axis=1).sum())
-    return float(np.min(w @ visited.sum(axis=0) - (mdp.horizon + 1) * b))
+        if risk == MIN_RISK and p is None:
+            return float((visited @ w.T - b).min(axis=1).sum())
+        return float(risk_statistic((visited @ w.T - b).T, risk, p).sum())
+    returns = w @ visited.sum(axis=0) - (mdp.horizon + 1) * b
+    if risk == MIN_RISK and p is None:
+        return float(np.min(returns))
+    return float(risk_statistic(returns, risk, p))
 
 
 # --------------------------------------------------------------------------- planning
@@ -201,11 +226,14 @@ def plan_path(
     baseline: str = "none",
     reference_features: np.ndarray | None = None,
     *,
+    risk: str = "min",
+    risk_level: float | None = None,
+    sample_weights: np.ndarray | None = None,
     solver: str | None = None,
     time_limit: float | None = None,
     work_limit: int | None = None,
 ) -> Plan:
-    """Plan a path maximising the objective of ``mode``.
+    """Plan a path maximising the objective of ``mode`` under the risk measure ``risk``.
 
     ``literal`` and ``per_step`` are one per-cell reward each, solved by ``mdp.optimal_path``
     (exact DP, ties broken "stay" first).
@@ -225,7 +253,13 @@ def plan_path(
         baseline: one of :data:`BASELINES`.
         reference_features: ``(d,)``, for the ``training_features`` baseline (see
             :func:`reward_baselines`).
-        solver: ``None`` (automatic) or one of ``SOLVERS[mode]``.
+        risk: one of ``RISK_MEASURES`` (``"min"``, ``"cvar"``, ``"mean_sd"``); ignored by
+            ``literal``. ``mean_sd`` is ``per_step`` only.
+        risk_level: ``alpha`` in ``(0, 1]`` for ``cvar``, ``lambda`` in ``[0, 100]`` for
+            ``mean_sd``, ``None`` for ``min``.
+        sample_weights: ``None`` (uniform) or ``(K,)`` probabilities of the samples summing to 1.
+        solver: ``None`` (automatic) or one of ``SOLVERS[mode]`` (trajectory CVaR: the MILP,
+            ``time_limit`` only).
         time_limit: seconds > 0 for ``trajectory`` (``None``: no limit).
         work_limit: label expansions >= 1 for ``trajectory`` (``None``: no limit): a
             deterministic limit, so the same inputs stop at the same point on every machine
@@ -242,15 +276,24 @@ def plan_path(
     w = check_plan_arguments(mode, baseline, weights, mdp.num_features, reference_features,
                              solver=solver, time_limit=time_limit, work_limit=work_limit)
     assert w is not None
+    measure = MIN_RISK if mode == PlanMode.LITERAL else check_risk(risk, risk_level)
+    p = None if mode == PlanMode.LITERAL else check_sample_weights(sample_weights, len(w))
+    if mode == PlanMode.TRAJECTORY and measure.measure == RiskMeasure.MEAN_SD:
+        raise ValueError("risk: mean_sd is a per_step risk measure (its trajectory form is not concave); "
+                         "use mode 'per_step' or risk 'cvar'")
+    if mode == PlanMode.TRAJECTORY and (measure != MIN_RISK or p is not None) and work_limit is not None:
+        raise ValueError("work_limit: trajectory CVaR and weighted samples are solved by the MILP, "
+                         "which takes a time_limit only")
     check_magnitude("features", mdp.features, MAX_ABS_FEATURE)
-    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit, work_limit)
+    plan = _plan(mdp, w, mode, baseline, reference_features, solver, time_limit, work_limit, measure, p)
     if not np.isfinite(plan.objective):  # unreachable within the checked ranges; never a success
         raise RuntimeError(f"objective: {plan.objective!r} is not finite; no plan is returned")
     return plan
 
 
 def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_features: np.ndarray | None,
-          solver: str | None, time_limit: float | None, work_limit: int | None = None) -> Plan:
+          solver: str | None, time_limit: float | None, work_limit: int | None = None,
+          risk: Risk = MIN_RISK, p: "np.ndarray | None" = None) -> Plan:
     """:func:`plan_path` on checked arguments."""
     b = reward_baselines(mdp, w, baseline, reference_features)
     q = _shifted_rewards(mdp, w, b)
@@ -259,20 +302,26 @@ def _plan(mdp: GridMDP, w: np.ndarray, mode: str, baseline: str, reference_featu
         value = _objective(mdp, cells, w, b, mode)
         return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
     if mode == PlanMode.PER_STEP:
-        cells = _dp_path(mdp, q.min(axis=0))
-        value = _objective(mdp, cells, w, b, mode)
-        return Plan(_as_cells(cells), value, mode, baseline, "dp", value)
+        per_cell = q.min(axis=0) if risk == MIN_RISK and p is None else risk_statistic(q, risk, p)
+        cells = _dp_path(mdp, per_cell)
+        value = _objective(mdp, cells, w, b, mode, risk, p)
+        return Plan(_as_cells(cells), value, mode, baseline, "dp", value, risk)
     try:
-        cells, bound, used = plan_trajectory(mdp, q, solver=solver, time_limit=time_limit, work_limit=work_limit)
+        if risk == MIN_RISK and p is None:
+            cells, bound, used = plan_trajectory(mdp, q, solver=solver, time_limit=time_limit, work_limit=work_limit)
+        else:
+            cells, bound = plan_trajectory_cvar(mdp, q, risk if risk != MIN_RISK else Risk("cvar", 1e-12), p,
+                                                time_limit)
+            used = "milp-cvar"
     except OutOfTime as exc:
         cells = states_to_cells(mdp, exc.states)
-        value = _objective(mdp, cells, w, b, mode)
-        plan = Plan(_as_cells(cells), value, mode, baseline, exc.solver, max(exc.bound, value))
+        value = _objective(mdp, cells, w, b, mode, risk, p)
+        plan = Plan(_as_cells(cells), value, mode, baseline, exc.solver, max(exc.bound, value), risk)
         limit = f"time_limit: {time_limit} s passed" if exc.reason == "time" else f"work_limit: {work_limit}: {exc}"
         raise PlanningTimeout(f"{limit} before the trajectory optimum was proven; "
                               f"best objective {value:.6g}, upper bound {plan.bound:.6g}", plan, exc.reason) from None
-    value = _objective(mdp, cells, w, b, mode)
-    return Plan(_as_cells(cells), value, mode, baseline, used, max(bound, value))
+    value = _objective(mdp, cells, w, b, mode, risk, p)
+    return Plan(_as_cells(cells), value, mode, baseline, used, max(bound, value), risk)
 
 
 def _as_cells(cells: "list[tuple[int, int]] | np.ndarray") -> tuple[tuple[int, int], ...]:

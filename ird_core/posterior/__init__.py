@@ -41,6 +41,12 @@ from ird_core.posterior.likelihoods import (
     sample_z_log_likelihood_grad,
     sample_z_scores,
 )
+from ird_core.posterior.observation_model import (
+    DEFAULT_OBSERVATION_MODEL,
+    MAXENT_OBSERVATION_MODEL,
+    ObservationModel,
+    behaviour_counts,
+)
 from ird_core.posterior.proxy_terms import (
     proxy_feature_expectations,
     proxy_observation,
@@ -67,6 +73,10 @@ from ird_core.posterior.settings import SamplerSettings
 
 __all__ = [
     "METHODS",
+    "ObservationModel",
+    "DEFAULT_OBSERVATION_MODEL",
+    "MAXENT_OBSERVATION_MODEL",
+    "behaviour_counts",
     "DEFAULT_NUM_PROXY_SAMPLES",
     "PROXY_BATCH",
     "logsumexp_rows",

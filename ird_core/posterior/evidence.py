@@ -43,7 +43,6 @@ from ird_core.checks import check_array, check_int, check_real
 from ird_core.mdp import GridMDP, feature_expectations, log_partition, log_partition_and_feature_expectations
 from ird_core.posterior.likelihoods import (
     DEFAULT_NUM_PROXY_SAMPLES,
-    RAY_STEP,
     choice_log_likelihood,
     choice_log_likelihood_and_grad,
     log_prior,
@@ -54,6 +53,12 @@ from ird_core.posterior.likelihoods import (
     proxy_prior_samples,
     sample_z_log_likelihood,
     sample_z_log_likelihood_and_grad,
+)
+from ird_core.posterior.observation_model import (
+    MAXENT_OBSERVATION_MODEL,
+    ObservationModel,
+    own_counts,
+    own_counts_and_ray,
 )
 from ird_core.vocabulary import ZMethod, parse
 
@@ -184,6 +189,9 @@ class PosteriorModel:
         dim: ``d``.
         proxy_terms: one ``ProxyTerm`` per proxy observation, in order.
         choices: the ``ChoiceObservation`` s, in order.
+        observation: the designer-behaviour assumptions (:class:`ObservationModel`): Sample-Z's
+            own term ``phi~(w)`` is the candidate's optimal-path counts or its MaxEnt
+            expectations at ``observation.temperature``, or left out.
     The single-proxy attributes ``train_mdp``, ``proxy_features`` and ``sample_features`` are
     those of the first proxy term.
     """
@@ -194,6 +202,7 @@ class PosteriorModel:
     dim: int
     proxy_terms: tuple[ProxyTerm, ...] = ()
     choices: tuple[ChoiceObservation, ...] = ()
+    observation: ObservationModel = MAXENT_OBSERVATION_MODEL
 
     @property
     def train_mdp(self) -> GridMDP:
@@ -224,7 +233,7 @@ class PosteriorModel:
                 for term in terms:
                     total = total + maxent_z_log_likelihood(weights, term.proxy_features, log_z, self.beta)
             else:
-                own = feature_expectations(mdp, weights)
+                own = own_counts(self.observation, mdp, weights)
                 for term in terms:
                     total = total + sample_z_log_likelihood(weights, term.proxy_features, own,
                                                             term.sample_features, self.beta)
@@ -238,7 +247,6 @@ class PosteriorModel:
         the ray ``t w``, relative error ~1e-6)."""
         value = log_prior(weights, self.prior_sigma)
         grad = log_prior_grad(weights, self.prior_sigma)
-        k = len(weights)
         for mdp, terms in self._groups:
             if self.method == ZMethod.MAXENT_Z:
                 log_z, expectations = log_partition_and_feature_expectations(mdp, weights)
@@ -246,8 +254,7 @@ class PosteriorModel:
                     value = value + maxent_z_log_likelihood(weights, term.proxy_features, log_z, self.beta)
                     grad = grad + maxent_z_log_likelihood_grad(term.proxy_features, expectations, self.beta)
             else:
-                both = feature_expectations(mdp, np.concatenate([weights, (1.0 + RAY_STEP) * weights]))
-                own, ray = both[:k], (both[k:] - both[:k]) / RAY_STEP
+                own, ray = own_counts_and_ray(self.observation, mdp, weights)
                 for term in terms:
                     v, g = sample_z_log_likelihood_and_grad(weights, term.proxy_features, own, ray,
                                                             term.sample_features, self.beta)
@@ -286,7 +293,8 @@ def _check_observations(observations: object, dim: "int | None") -> tuple[list, 
 def make_joint_model(observations: "Sequence[Observation]", beta: float, method: str,
                      prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
                      seed: int = 0, num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES,
-                     dim: "int | None" = None) -> PosteriorModel:
+                     dim: "int | None" = None,
+                     observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> PosteriorModel:
     """Validate the arguments and precompute every ``phi~(w~)`` and (Sample-Z) ``phi_i``.
 
     Args:
@@ -301,10 +309,16 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
         seed: ``>= 0``, seeds the default proxy samples.
         num_proxy_samples: ``N`` when the proxy samples are drawn here, ``>= 1``.
         dim: ``d`` when known from elsewhere (the weights); then checked against the observations.
+        observation_model: how ``phi~(w~)``, the ``phi_i`` and Sample-Z's own term summarise
+            behaviour (:class:`ObservationModel`); observations that carry their
+            ``proxy_features`` / ``proxy_sample_features`` must have been built with the same
+            model (``proxy_observations(..., observation_model=...)``).
     Returns:
         The ``PosteriorModel``.
     """
     items, dim = _check_observations(observations, dim)
+    if not isinstance(observation_model, ObservationModel):
+        raise ValueError(f"observation_model: expected an ObservationModel, got {type(observation_model).__name__}")
     beta = check_real("beta", beta, positive=False)
     parse(ZMethod, method, "method")
     sigma = check_real("prior_sigma", prior_sigma, positive=True)
@@ -316,7 +330,7 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
     for obs in (o for o in items if isinstance(o, ProxyObservation)):
         phi = obs.proxy_features
         if phi is None:
-            phi = _frozen(proxy_feature_counts(obs.train_mdp, obs.proxy_weights))
+            phi = _frozen(proxy_feature_counts(obs.train_mdp, obs.proxy_weights, model=observation_model))
         phi_i = None
         if method == ZMethod.SAMPLE_Z:
             phi_i = obs.proxy_sample_features
@@ -325,11 +339,11 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
                     samples = proxy_prior_samples(num_proxy_samples, dim, sigma, seed)
                 key = id(obs.train_mdp)
                 if key not in sample_phi:
-                    sample_phi[key] = _frozen(proxy_feature_counts(obs.train_mdp, samples))
+                    sample_phi[key] = _frozen(proxy_feature_counts(obs.train_mdp, samples, model=observation_model))
                 phi_i = sample_phi[key]
         terms.append(ProxyTerm(obs.train_mdp, phi, phi_i))
     choices = tuple(o for o in items if isinstance(o, ChoiceObservation))
-    return PosteriorModel(method, beta, sigma, dim, tuple(terms), choices)
+    return PosteriorModel(method, beta, sigma, dim, tuple(terms), choices, observation_model)
 
 
 def joint_log_posterior(weights: np.ndarray, observations: "Sequence[Observation]",

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import softmax
 
-from ird_core.mdp import GridMDP, expected_visitation, feature_expectations
+from ird_core.mdp import GridMDP
+from ird_core.posterior.observation_model import RAY_STEP, MAXENT_OBSERVATION_MODEL, ObservationModel, behaviour_counts
 from ird_core.vocabulary import METHODS
 
 __all__ = [
@@ -43,8 +44,6 @@ DEFAULT_NUM_PROXY_SAMPLES: int = 1000
 
 
 
-#: Relative step along the ray ``t w`` for the Sample-Z own-term derivative ``H(w) w``.
-RAY_STEP: float = 1e-6
 
 #: OpenBLAS runs a gemm on one thread when ``M * N * K`` is at most this (its
 #: ``SMP_THRESHOLD_MIN * GEMM_MULTITHREAD_THRESHOLD``); larger products start threads.
@@ -108,49 +107,66 @@ def maxent_z_log_likelihood_grad(proxy_features: np.ndarray, expectations: np.nd
     return beta * (proxy_features[None, :] - expectations)
 
 
-def sample_z_scores(weights: np.ndarray, own_features: np.ndarray, sample_features: np.ndarray,
+def sample_z_scores(weights: np.ndarray, own_features: "np.ndarray | None", sample_features: np.ndarray,
                     beta: float) -> np.ndarray:
     """The terms of the Sample-Z normaliser: ``[beta w . phi~(w), beta w . phi_1, ...]``.
 
     Args:
-        weights: ``(K, d)``; own_features: ``(K, d)`` = ``phi~(w)``; sample_features: ``(N, d)``.
+        weights: ``(K, d)``; own_features: ``(K, d)`` = ``phi~(w)``, or ``None`` to leave the
+            candidate's own term out (the ablation); sample_features: ``(N, d)``.
     Returns:
-        ``(K, N + 1)``, column 0 the candidate's own term.
+        ``(K, N + 1)``, column 0 the candidate's own term (``(K, N)`` without it).
     """
+    samples = _product(weights, sample_features.T)
+    if own_features is None:
+        return beta * samples
     own = np.sum(weights * own_features, axis=1, keepdims=True)
-    return beta * np.concatenate([own, _product(weights, sample_features.T)], axis=1)
+    return beta * np.concatenate([own, samples], axis=1)
 
 
-def sample_z_log_likelihood(weights: np.ndarray, proxy_features: np.ndarray, own_features: np.ndarray,
+def _expected_counts(p: np.ndarray, own_features: "np.ndarray | None", own_ray_derivative: "np.ndarray | None",
+                     sample_features: np.ndarray) -> np.ndarray:
+    """``sum_j p_j d(score_j / beta)/dw``: ``p_0 (phi~(w) + H(w) w) + sum_i p_i phi_i`` (no own
+    term: ``sum_i p_i phi_i``); a ``None`` ray derivative is zero (optimal-path counts)."""
+    if own_features is None:
+        return _product(p, sample_features)
+    own = own_features if own_ray_derivative is None else own_features + own_ray_derivative
+    return p[:, :1] * own + _product(p[:, 1:], sample_features)
+
+
+def sample_z_log_likelihood(weights: np.ndarray, proxy_features: np.ndarray, own_features: "np.ndarray | None",
                             sample_features: np.ndarray, beta: float) -> np.ndarray:
     """``beta * w . phi~(w~) - logsumexp(sample_z_scores)``; ``(K,)``.
 
-    No ``- log(N + 1)``: the constant cancels in the posterior.
+    No ``- log(N + 1)``: the constant cancels in the posterior. ``own_features=None`` leaves the
+    candidate's own term out.
     """
     scores = sample_z_scores(weights, own_features, sample_features, beta)
     return beta * (weights @ proxy_features) - logsumexp_rows(scores)
 
 
 def sample_z_log_likelihood_grad(weights: np.ndarray, proxy_features: np.ndarray,
-                                 own_features: np.ndarray, own_ray_derivative: np.ndarray,
+                                 own_features: "np.ndarray | None", own_ray_derivative: "np.ndarray | None",
                                  sample_features: np.ndarray, beta: float) -> np.ndarray:
     """Gradient of ``sample_z_log_likelihood``.
 
     ``beta * (phi~(w~) - p_0 (phi~(w) + H(w) w) - sum_i p_i phi_i)``, ``p = softmax(scores)``.
 
     Args:
-        weights, own_features: ``(K, d)``; own_ray_derivative: ``(K, d)`` = ``H(w) w``;
-        proxy_features: ``(d,)``; sample_features: ``(N, d)``.
+        weights, own_features: ``(K, d)`` (``own_features`` ``None``: no own term);
+        own_ray_derivative: ``(K, d)`` = ``H(w) w`` (``None``: zero, as for optimal-path counts,
+        whose Jacobian vanishes almost everywhere); proxy_features: ``(d,)``;
+        sample_features: ``(N, d)``.
     Returns:
         ``(K, d)``.
     """
     p = softmax(sample_z_scores(weights, own_features, sample_features, beta), axis=1)
-    expected = p[:, :1] * (own_features + own_ray_derivative) + _product(p[:, 1:], sample_features)
+    expected = _expected_counts(p, own_features, own_ray_derivative, sample_features)
     return beta * (proxy_features[None, :] - expected)
 
 
 def sample_z_log_likelihood_and_grad(weights: np.ndarray, proxy_features: np.ndarray,
-                                     own_features: np.ndarray, own_ray_derivative: np.ndarray,
+                                     own_features: "np.ndarray | None", own_ray_derivative: "np.ndarray | None",
                                      sample_features: np.ndarray, beta: float
                                      ) -> tuple[np.ndarray, np.ndarray]:
     """``sample_z_log_likelihood`` ``(K,)`` and ``sample_z_log_likelihood_grad`` ``(K, d)``
@@ -161,7 +177,7 @@ def sample_z_log_likelihood_and_grad(weights: np.ndarray, proxy_features: np.nda
     total = terms.sum(axis=1, keepdims=True)
     p = terms / total
     value = beta * (weights @ proxy_features) - (peak + np.log(total))[:, 0]
-    expected = p[:, :1] * (own_features + own_ray_derivative) + _product(p[:, 1:], sample_features)
+    expected = _expected_counts(p, own_features, own_ray_derivative, sample_features)
     return value, beta * (proxy_features[None, :] - expected)
 
 
@@ -218,23 +234,27 @@ PROXY_BATCH: int = 256
 
 
 def proxy_feature_counts(planning_mdp: GridMDP, proxy_weights: np.ndarray,
-                         hypothesis_features: np.ndarray | None = None) -> np.ndarray:
-    """``phi~(w~)``: expected hypothesis-space feature counts of MaxEnt proxies in their training MDP.
+                         hypothesis_features: np.ndarray | None = None,
+                         model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
+    """``phi~(w~)``: hypothesis-space feature counts of proxies' behaviour in their training MDP.
 
     The designer's proxy acts on the features it was written for (``planning_mdp.features``,
     ``(H, W, p)``); IRD conditions on what that behaviour does in the hypothesis space
     (``hypothesis_features``, ``(H, W, d)``, the same cells). When the two coincide (every
     Lavaland condition but latent_classifier) pass ``None``. This is the one place where the
     proxy is "planned on its own map and contracted with the hypothesis features": Lavaland,
-    the inference node and the planner's training-features baseline all call it.
+    the inference node and the planner's training-features baseline all call it. ``model``
+    says which behaviour: the optimal path's counts or MaxEnt expectations at a temperature
+    (:class:`ird_core.posterior.ObservationModel`).
 
     Args:
         planning_mdp: the training MDP on the proxy's features, ``(H, W, p)``.
         proxy_weights: ``(K, p)`` (or ``(p,)`` for one proxy).
         hypothesis_features: ``(H, W, d)`` or ``None`` (= ``planning_mdp.features``).
+        model: the observation model (default: unit-temperature MaxEnt expectations).
 
     Returns:
-        ``(K, d)`` (``(d,)`` for a ``(p,)`` input): expected counts over the ``T + 1`` states.
+        ``(K, d)`` (``(d,)`` for a ``(p,)`` input): counts over the ``T + 1`` states.
 
     Raises:
         ValueError: naming ``proxy_weights`` or ``hypothesis_features`` when a size is wrong or
@@ -248,19 +268,14 @@ def proxy_feature_counts(planning_mdp: GridMDP, proxy_weights: np.ndarray,
         raise ValueError(f"proxy_weights: expected shape (K, {p}) with K >= 1, got {np.shape(proxy_weights)}")
     if not np.all(np.isfinite(weights)):
         raise ValueError("proxy_weights: contains NaN or infinite values")
-    if hypothesis_features is None:
-        out = np.concatenate([feature_expectations(planning_mdp, weights[lo: lo + PROXY_BATCH])
-                              for lo in range(0, len(weights), PROXY_BATCH)])
-        return out[0] if single else out
-    hyp = np.asarray(hypothesis_features, dtype=np.float64)
-    if hyp.ndim != 3 or hyp.shape[:2] != (planning_mdp.height, planning_mdp.width) or hyp.shape[2] < 1:
-        raise ValueError(f"hypothesis_features: expected shape ({planning_mdp.height}, {planning_mdp.width}, d), "
-                         f"got {hyp.shape}")
-    if not np.all(np.isfinite(hyp)):
-        raise ValueError("hypothesis_features: contains NaN or infinite values")
-    flat = hyp.reshape(-1, hyp.shape[2])
-    out = np.empty((len(weights), hyp.shape[2]))
-    for lo in range(0, len(weights), PROXY_BATCH):
-        visits = expected_visitation(planning_mdp, weights[lo: lo + PROXY_BATCH])
-        out[lo: lo + len(visits)] = visits.reshape(len(visits), -1) @ flat
+    hyp = None
+    if hypothesis_features is not None:
+        hyp = np.asarray(hypothesis_features, dtype=np.float64)
+        if hyp.ndim != 3 or hyp.shape[:2] != (planning_mdp.height, planning_mdp.width) or hyp.shape[2] < 1:
+            raise ValueError(f"hypothesis_features: expected shape ({planning_mdp.height}, {planning_mdp.width}, d), "
+                             f"got {hyp.shape}")
+        if not np.all(np.isfinite(hyp)):
+            raise ValueError("hypothesis_features: contains NaN or infinite values")
+    out = np.concatenate([behaviour_counts(planning_mdp, weights[lo: lo + PROXY_BATCH], model, hyp)
+                          for lo in range(0, len(weights), PROXY_BATCH)])
     return out[0] if single else out

@@ -25,26 +25,30 @@ from ird_core.checks import check_int, check_real
 from ird_core.mdp import GridMDP
 from ird_core.posterior.evidence import ProxyObservation
 from ird_core.posterior.likelihoods import proxy_feature_counts, proxy_prior_samples
+from ird_core.posterior.observation_model import MAXENT_OBSERVATION_MODEL, ObservationModel
 from ird_core.worlds.lavaland import LavalandInstance, TrainingWorld, train_mdp
 from ird_core.worlds.terrain import as_generator
 
 __all__ = ["proxy_observation", "proxy_feature_expectations", "proxy_prior_features", "proxy_observations"]
 
 
-def _counts(train: GridMDP, proxy_mdp: GridMDP | None, weights: np.ndarray) -> np.ndarray:
+def _counts(train: GridMDP, proxy_mdp: GridMDP | None, weights: np.ndarray,
+            model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
     """(K, p) proxy weights -> (K, d) hypothesis-space counts in the training MDP."""
     if proxy_mdp is None:
-        return proxy_feature_counts(train, weights)
-    return proxy_feature_counts(proxy_mdp, weights, train.features)
+        return proxy_feature_counts(train, weights, model=model)
+    return proxy_feature_counts(proxy_mdp, weights, train.features, model=model)
 
 
 def _prior_counts(train: GridMDP, proxy_mdp: GridMDP | None, num: int,
-                  seed: int | np.random.Generator, prior_sigma: float) -> np.ndarray:
+                  seed: int | np.random.Generator, prior_sigma: float,
+                  model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
     """Sample-Z ``phi_i`` (num, d) of ``num`` proxies drawn from the prior in the proxy's space."""
     num = check_int("num_proxy_samples", num, 1)
     check_real("prior_sigma", prior_sigma, positive=True, ranged=False)
     space = train if proxy_mdp is None else proxy_mdp
-    return _counts(train, proxy_mdp, proxy_prior_samples(num, space.num_features, prior_sigma, as_generator(seed)))
+    return _counts(train, proxy_mdp, proxy_prior_samples(num, space.num_features, prior_sigma, as_generator(seed)),
+                   model)
 
 
 def proxy_observation(
@@ -55,6 +59,7 @@ def proxy_observation(
     num_proxy_samples: int | None = None,
     seed: int | np.random.Generator = 0,
     prior_sigma: float = 1.0,
+    observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL,
 ) -> ProxyObservation:
     """The :class:`ProxyObservation` of a proxy written for ``train_mdp``, with ``phi~(w~)`` computed.
 
@@ -68,16 +73,17 @@ def proxy_observation(
             ``(N, d)`` (prior proxies drawn in the proxy's space with ``seed``, ``prior_sigma``).
         seed: int seed or numpy Generator of the prior draws.
         prior_sigma: prior standard deviation, ``> 0``.
+        observation_model: how behaviour is counted (optimal path or MaxEnt expectations).
 
     Returns:
         ``ProxyObservation(proxy_weights, train_mdp, proxy_features=(d,),
         proxy_sample_features=(N, d) or None)``.
     """
     weights = np.asarray(proxy_weights, dtype=np.float64)
-    phi = _counts(train_mdp, proxy_mdp, weights[None])[0]
+    phi = _counts(train_mdp, proxy_mdp, weights[None], observation_model)[0]
     sample_phi = None
     if num_proxy_samples is not None:
-        sample_phi = _prior_counts(train_mdp, proxy_mdp, num_proxy_samples, seed, prior_sigma)
+        sample_phi = _prior_counts(train_mdp, proxy_mdp, num_proxy_samples, seed, prior_sigma, observation_model)
     return ProxyObservation(weights, train_mdp, proxy_features=phi, proxy_sample_features=sample_phi)
 
 
@@ -86,17 +92,19 @@ def _proxy_mdp(instance: LavalandInstance) -> GridMDP | None:
     return None if instance.classifier is None else train_mdp(instance, proxy=True)
 
 
-def proxy_feature_expectations(instance: LavalandInstance) -> np.ndarray:
-    """The proxy's expected feature counts in the instance's training map, in the hypothesis space.
+def proxy_feature_expectations(instance: LavalandInstance,
+                               observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
+    """The proxy's feature counts in the instance's training map, in the hypothesis space.
 
-    The proxy's MaxEnt behaviour is planned on the proxy features (identical to the hypothesis
-    features except for latent_classifier, where it is planned on the classified cells); its
-    expected visits are contracted with the hypothesis features.
+    The proxy's behaviour (MaxEnt by default, or its optimal path: ``observation_model``) is
+    planned on the proxy features (identical to the hypothesis features except for
+    latent_classifier, where it is planned on the classified cells); its visits are contracted
+    with the hypothesis features.
 
     Returns:
         (d,) = ``E[phi(xi) | proxy]`` over the T + 1 states of the training MDP.
     """
-    return _counts(train_mdp(instance), _proxy_mdp(instance), instance.proxy_weights[None])[0]
+    return _counts(train_mdp(instance), _proxy_mdp(instance), instance.proxy_weights[None], observation_model)[0]
 
 
 def _check_prior(num: int, prior_sigma: float) -> None:
@@ -147,6 +155,7 @@ def proxy_observations(
     num_proxy_samples: int | None = None,
     seed: int = 0,
     prior_sigma: float = 1.0,
+    observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL,
 ) -> list[ProxyObservation]:
     """One :class:`ProxyObservation` per training world (the first, then
     ``instance.extra_training_worlds``), for ``sample_joint_posterior``.
@@ -156,9 +165,11 @@ def proxy_observations(
         num_proxy_samples: if given, each observation carries its Sample-Z counts
             ``proxy_prior_features(world, num_proxy_samples, seed, prior_sigma)``: the same proxy
             draws planned in every world (needed when the proxy lives on classifier outputs).
+        observation_model: how behaviour is counted; pass the posterior's own.
     """
     if num_proxy_samples is not None:
         _check_prior(num_proxy_samples, prior_sigma)
     return [proxy_observation(train_mdp(view), view.proxy_weights, proxy_mdp=_proxy_mdp(view),
-                              num_proxy_samples=num_proxy_samples, seed=seed, prior_sigma=prior_sigma)
+                              num_proxy_samples=num_proxy_samples, seed=seed, prior_sigma=prior_sigma,
+                              observation_model=observation_model)
             for view in _training_views(instance)]

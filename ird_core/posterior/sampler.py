@@ -28,6 +28,7 @@ from ird_core import mcmc
 from ird_core.checks import check_int, check_real
 from ird_core.mdp import GridMDP
 from ird_core.posterior.evidence import ChoiceObservation, PosteriorModel, ProxyObservation, make_joint_model
+from ird_core.posterior.observation_model import MAXENT_OBSERVATION_MODEL, ObservationModel
 from ird_core.posterior.laplace import laplace_approximation
 from ird_core.posterior.likelihoods import DEFAULT_NUM_PROXY_SAMPLES
 from ird_core.posterior.result import R_HAT_CAP, R_HAT_CONVERGED, Posterior, pool_draws
@@ -93,7 +94,8 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
                            trajectory_length: "float | None" = None, warmup_max_leapfrog: "int | None" = None,
                            initial: "Posterior | None" = None,
                            until_converged: "RunUntil | None" = None,
-                           progress: "mcmc.ProgressFn | None" = None) -> Posterior:
+                           progress: "mcmc.ProgressFn | None" = None,
+                           observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> Posterior:
     """Draw ``num_samples`` weights from the joint IRD posterior with batched MCMC (docs/spec.md section 7).
 
     Args:
@@ -134,6 +136,9 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
         until_converged: a ``RunUntil``: extend the chains until R-hat and ESS pass or a bound
             stops them (see ``RunUntil``); None (default): the fixed-length run above.
         progress: optional ``progress(step, total)`` callback, once per MCMC step.
+        observation_model: the designer-behaviour assumptions (``ObservationModel``: optimal-path
+            or MaxEnt counts, the designer's temperature, Sample-Z's own term); observations
+            carrying their own counts must have been built with the same model.
     Returns:
         The ``Posterior``. Emits a ``RuntimeWarning`` if it is not ``converged``.
     """
@@ -142,7 +147,8 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
                         num_proxy_samples=num_proxy_samples, init=init, init_scale=init_scale,
                         max_leapfrog=max_leapfrog, trajectory_length=trajectory_length,
                         warmup_max_leapfrog=warmup_max_leapfrog, initial=initial,
-                        until_converged=until_converged, progress=progress)
+                        until_converged=until_converged, progress=progress,
+                        observation_model=observation_model)
     _warn_unconverged(posterior, "sample_joint_posterior")
     return posterior
 
@@ -240,7 +246,8 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
             init: str = "laplace", init_scale: float = DEFAULT_INIT_SCALE, max_leapfrog: "int | None" = None,
             trajectory_length: "float | None" = None, warmup_max_leapfrog: "int | None" = None,
             initial: "Posterior | None" = None, until_converged: "RunUntil | None" = None,
-            progress: "mcmc.ProgressFn | None" = None) -> Posterior:
+            progress: "mcmc.ProgressFn | None" = None,
+            observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> Posterior:
     """``sample_joint_posterior`` without the convergence warning (its callers emit it)."""
     started = time.monotonic()
     if until_converged is not None and not isinstance(until_converged, RunUntil):
@@ -248,7 +255,7 @@ def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta
     plan = _schedule(method, num_samples, num_chains, warmup, thin, initial is not None, max_leapfrog,
                      trajectory_length, warmup_max_leapfrog, init, init_scale, kernel)
     model = make_joint_model(observations, beta, method, prior_sigma, proxy_samples, seed=seed,
-                             num_proxy_samples=num_proxy_samples)
+                             num_proxy_samples=num_proxy_samples, observation_model=observation_model)
     chain_seed, init_seed = (int(s) for s in np.random.SeedSequence([seed, 1]).generate_state(2))
     starts, metric, centre, mode = _chain_starts(model, initial, init, plan.init_scale, num_chains,
                                                  np.random.default_rng(init_seed))
@@ -306,7 +313,7 @@ def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
             ``ProxyObservation`` (``ird_core.posterior.evidence``); the rest as ``sample_joint_posterior``
             (``num_chains``, ``warmup``, ``thin``, ``kernel``, ``num_proxy_samples``, ``init``,
             ``init_scale``, ``max_leapfrog``, ``trajectory_length``, ``warmup_max_leapfrog``,
-            ``initial``, ``until_converged``, ``progress``).
+            ``initial``, ``until_converged``, ``progress``, ``observation_model``).
     Returns:
         The ``Posterior``. Emits a ``RuntimeWarning`` if it is not ``converged``.
     """
