@@ -76,6 +76,7 @@ class PendingCall(Generic[T]):
         self._callbacks: list[Callable[[], None]] = []
         self._fired = False
         self._futures: list[Any] = []
+        self._winner: Any = None
         self.drops = 0  # times the server dropped out while this request was pending
         self.resends = 0
         self.outage = 0.0  # seconds the latest drop lasted
@@ -92,7 +93,10 @@ class PendingCall(Generic[T]):
         self._futures.append(future)
 
     def _answered(self) -> Any:
-        return next((f for f in self._futures if f.done()), None)
+        """The future of the first answer (kept: a late answer to another copy changes nothing)."""
+        if self._winner is None:
+            self._winner = next((f for f in self._futures if f.done()), None)
+        return self._winner
 
     @property
     def server_dropped(self) -> bool:
@@ -148,7 +152,7 @@ class PendingCall(Generic[T]):
         if self._fired:
             return
         self._fired = True
-        if self._answered() is not None:
+        if self._lost is None and self._answered() is not None:
             self._forget()
         for callback in self._callbacks:
             callback()
@@ -168,10 +172,10 @@ class PendingCall(Generic[T]):
             self._callbacks.append(callback)
 
     def result(self) -> CallResult[T]:
-        """The answer; ``RuntimeError`` before the call ended."""
+        """The answer (or the FAILED result of a lost request); ``RuntimeError`` before the call ended."""
+        if self._lost is not None:
+            return self._lost
         future = self._answered()
         if future is not None:
             return decode_answer(self.service, future.result(), self._decode)
-        if self._lost is not None:
-            return self._lost
         raise RuntimeError(f"{self.service}: no answer yet")

@@ -102,3 +102,107 @@ def test_refusal_from_the_node_names_the_field(inference: NodeProcess, ros_ctx: 
         result = ird.infer(request, timeout=60.0)
     assert result.status is CallStatus.REFUSED and result.field == "beta", result
     assert result.value is None and not result.response.success
+
+
+# ------------------------------------------------------------------ a server that drops out
+
+
+class _Future:
+    def __init__(self) -> None:
+        self.value: Any = None
+        self.callbacks: list[Any] = []
+
+    def done(self) -> bool:
+        return self.value is not None
+
+    def result(self) -> Any:
+        return self.value
+
+    def add_done_callback(self, callback: Any) -> None:
+        self.callbacks.append(callback)
+
+    def answer(self, message: str) -> None:
+        from std_srvs.srv import Trigger
+
+        self.value = Trigger.Response(success=True, message=message)
+        for callback in self.callbacks:
+            callback(self)
+
+
+class _DroppingClient:
+    """An rclpy client stand-in whose server can drop out (``ready``) and whose requests are kept."""
+
+    def __init__(self) -> None:
+        self.ready = True
+        self.sent: list[_Future] = []
+        self.removed: list[_Future] = []
+
+    def service_is_ready(self) -> bool:
+        return self.ready
+
+    def call_async(self, _request: Any) -> _Future:
+        self.sent.append(_Future())
+        return self.sent[-1]
+
+    def remove_pending_request(self, future: _Future) -> None:
+        self.removed.append(future)
+
+
+def _pending(resend: bool) -> tuple[Any, _DroppingClient, list[float], list[int]]:
+    from ird_ros.client.pending import PendingCall
+
+    client, now, fired = _DroppingClient(), [0.0], [0]
+    pending = PendingCall(names.SRV_ROB_STOP, client, object(), None, resend=resend, lost_grace=5.0,
+                          clock=lambda: now[0])
+    pending.add_done_callback(lambda: fired.__setitem__(0, fired[0] + 1))
+    return pending, client, now, fired
+
+
+def test_a_request_whose_server_dropped_out_is_resent_and_the_first_answer_wins() -> None:
+    pending, client, now, fired = _pending(resend=True)
+    assert not pending.done() and len(client.sent) == 1
+    client.ready = False
+    now[0] = 21.0
+    assert not pending.done() and pending.server_dropped and len(client.sent) == 1  # nothing sent while away
+    client.ready = True
+    now[0] = 25.0
+    assert not pending.done() and len(client.sent) == 2 and pending.resends == 1 and pending.outage == 4.0
+    now[0] = 1000.0
+    assert not pending.done()  # a resent request waits for its answer (or the caller's timeout)
+    client.sent[1].answer("stopped")
+    assert pending.done() and pending.result().message == "stopped" and pending.result().response is not None
+    assert client.removed == [client.sent[0]] and fired == [1]
+    client.sent[0].answer("late")  # a late answer to the first copy changes nothing
+    assert pending.result().message == "stopped" and fired == [1]
+
+
+def test_a_request_that_is_not_resent_fails_after_the_grace_unless_answered() -> None:
+    pending, client, now, fired = _pending(resend=False)
+    client.ready = False
+    now[0] = 20.0
+    pending.poll()
+    client.ready = True
+    now[0] = 22.5
+    pending.poll()
+    now[0] = 27.4
+    assert not pending.done() and len(client.sent) == 1  # within the grace: an answer may still come
+    now[0] = 27.5
+    assert pending.done() and fired == [1]
+    result = pending.result()
+    assert result.status is CallStatus.FAILED and result.response is None and not result.ok
+    for words in (names.SRV_ROB_STOP, "dropped out of the graph for 2.5 s", "within 5 s", "may have been carried out"):
+        assert words in result.message, result.message
+    assert client.removed == [client.sent[0]]
+    # answered within the grace instead: the answer, no failure
+    pending, client, now, fired = _pending(resend=False)
+    client.ready = False
+    pending.poll()
+    client.ready = True
+    pending.poll()
+    client.sent[0].answer("stopped after all")
+    now[0] = 100.0
+    assert pending.done() and pending.result().status is CallStatus.DONE and fired == [1]
+    with pytest.raises(ValueError, match="lost_grace"):
+        from ird_ros.client.pending import PendingCall
+
+        PendingCall(names.SRV_ROB_STOP, client, object(), None, lost_grace=-1.0)
