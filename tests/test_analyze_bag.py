@@ -12,12 +12,15 @@ import math
 from pathlib import Path
 from typing import Any
 
+import matplotlib.colors as mcolors
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys.base import Nodetype
 
+from ird_core import style
 from ird_ros.apps import analyze_bag as analyze_bag_app
+from ird_ros.bags import plots
 from ird_ros.bags.analysis import analyze, extract_missions
 from ird_ros.bags.missions import terrain_from_msg
 from ird_ros.bags.storage import make_typestore, read_messages, summarize
@@ -29,7 +32,7 @@ ORIGIN = (-1.0, 2.0)
 CLASS_NAMES = ["dirt", "grass", "target", "lava"]
 DIRT, GRASS, TARGET, LAVA = range(4)
 TRUE_REWARD = {DIRT: 0.1, GRASS: -0.2, TARGET: 1.0, LAVA: -10.0}
-LAVA_RGB = (0xE0 / 255, 0x40 / 255, 0x1F / 255)
+LAVA_RGB = style.hex_rgb(style.terrain_color("lava"))
 
 _NUMPY = {"float32": np.float32, "float64": np.float64, "uint8": np.uint8, "int8": np.int8, "uint32": np.uint32,
           "int32": np.int32, "uint16": np.uint16, "int16": np.int16, "uint64": np.uint64, "int64": np.int64}
@@ -167,6 +170,7 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]
     grid = make(s, "ird_msgs/msg/FeatureGrid", header=b.header(T0), info=b.info(h, w), layers=CLASS_NAMES,
                 data=feats.ravel().copy())
     b.write("/world/train_features", "ird_msgs/msg/FeatureGrid", T0 + 1000, grid)
+    b.write("/world/test_features", "ird_msgs/msg/FeatureGrid", T0 + 1000, grid)
     rng = np.random.default_rng(0)
     samples = rng.normal(size=(20, 4))
     post = make(s, "ird_msgs/msg/RewardPosterior", header=b.header(T0), feature_names=CLASS_NAMES, method="maxent_z",
@@ -264,6 +268,23 @@ def test_analyze_writes_plots_and_label_statistics(bag: tuple[Path, dict[str, An
                                                "mean_true_return": (0.1 * 3 - 10 + 0.1 + 0.5) / 2})
     assert labels["ird_per_step"]["target_fraction"] == 1.0
     json.dumps(report)  # JSON-able
+
+
+def test_posterior_plot_is_per_terrain_of_the_test_map(bag: tuple[Path, dict[str, Any]]) -> None:
+    """Indicator features: the reward of terrain t is the weight of its indicator; the plot has one
+    box per terrain of the test map, in the terrain's colour."""
+    path, exp = bag
+    msgs = read_messages(path, ["/world/terrain", "/ird/posterior", "/world/test_features"])
+    terrain = terrain_from_msg(msgs["/world/terrain"][0].msg)
+    grid = msgs["/world/test_features"][0].msg
+    layers, features = plots.feature_map(grid)
+    rewards = plots.terrain_rewards(exp["samples"], features, terrain.classes, terrain.class_names)
+    assert list(rewards) == CLASS_NAMES == list(layers)
+    for t, name in enumerate(CLASS_NAMES):
+        np.testing.assert_allclose(rewards[name], exp["samples"][:, t])
+    ax = plots.posterior_figure(msgs["/ird/posterior"][0].msg, terrain, grid).axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == CLASS_NAMES
+    assert [mcolors.to_hex(p.get_facecolor()) for p in ax.patches] == [style.terrain_color(n) for n in CLASS_NAMES]
 
 
 def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tmp_path: Path,

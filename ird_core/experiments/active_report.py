@@ -4,7 +4,10 @@
 Invariants: ``active.csv`` has one row per condition x strategy x number of queries
 (``active.SUMMARY_COLUMNS``), ``active_trials.csv`` one row per trial x plan in run order
 (``active.RESULT_COLUMNS``); the headline's comparisons are paired by seed
-(:mod:`ird_core.experiments.statistics`). matplotlib is imported only when figures are drawn.
+(:mod:`ird_core.experiments.statistics`). Figures take every colour from :mod:`ird_core.style`
+(strategies and bounds: ``planner_color``; outcomes: the terrain's colour, gold only on
+``pot_of_gold``); :func:`replot` redraws them from a committed ``active.csv``. matplotlib is
+imported only when figures are drawn.
 """
 
 from __future__ import annotations
@@ -13,18 +16,20 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Sequence
 
+from ird_core import style
 from ird_core.experiments import active
 from ird_core.experiments.parallel import describe
 from ird_core.experiments.report import RunRecord
 from ird_core.experiments.tables import cells_text, number, percent, write_csv, write_run_json
 from ird_core.vocabulary import QueryStrategy
-from ird_core.worlds.terrain import Terrain
 
-__all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "plot_condition", "write_report"]
+__all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "read_summaries_csv", "condition_figure",
+           "plot_condition", "replot", "write_report"]
 
 LABEL: dict[str, str] = {QueryStrategy.INFO_GAIN: "info-gain queries", QueryStrategy.RANDOM: "random queries",
                          "literal": "literal", "oracle": "oracle"}
-COLOUR: dict[str, str] = {QueryStrategy.INFO_GAIN: "#4c72b0", QueryStrategy.RANDOM: "#dd8452", "literal": "#c44e52", "oracle": "#55a868"}
+COLOUR: dict[str, str] = {k: style.planner_color(k) for k in (QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM, "literal",
+                                                                 "oracle")}
 #: The outcome flags drawn per strategy: (name, summary field).
 OUTCOMES: tuple[tuple[str, str], ...] = (("lava", "lava_fraction"), ("target", "target_fraction"),
                                          ("gold", "gold_fraction"))
@@ -118,14 +123,12 @@ def _plot_returns(ax: Any, rows: list[active.ActiveSummary], strategy: str) -> l
 
 def _plot_outcomes(ax: Any, rows: list[active.ActiveSummary], strategy: str, condition: str) -> None:
     """A strategy's lava / target (/ gold on pot_of_gold) fractions by number of queries."""
-    from ird_core.worlds.terrain import TERRAIN_COLORS
-
     ss = sorted((s for s in rows if s.strategy == strategy), key=lambda s: s.num_queries)
     x = [s.num_queries for s in ss]
     for name, key in OUTCOMES:
         if name == "gold" and condition != "pot_of_gold":
             continue
-        ax.plot(x, [getattr(s, key) for s in ss], color=TERRAIN_COLORS[Terrain[name.upper()]],
+        ax.plot(x, [getattr(s, key) for s in ss], color=style.terrain_color(name),
                 marker="o" if strategy == QueryStrategy.INFO_GAIN else "s", ls="-" if strategy == QueryStrategy.INFO_GAIN else ":",
                 label=f"{name}, {LABEL[strategy]}")
 
@@ -138,16 +141,27 @@ def _bounds(ax: Any, rows: list[active.ActiveSummary]) -> None:
             ax.axhspan(s.return_ci_low, s.return_ci_high, color=COLOUR[s.strategy], alpha=0.12, lw=0)
 
 
-def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], condition: str) -> Path:
-    """``active_<condition>.png``: mean true return vs number of queries (both strategies, literal
-    and oracle as lines) and the IRD path's outcome fractions."""
-    import matplotlib
+def read_summaries_csv(path: Path) -> list[active.ActiveSummary]:
+    """The summaries of an ``active.csv`` (:func:`write_report`'s, up to float printing)."""
+    import csv
+    import dataclasses as dc
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    kinds = {f.name: f.type for f in dc.fields(active.ActiveSummary)}
+    convert = {"int": lambda v: int(float(v)), "float": float, "str": str}
+    with open(path, newline="") as handle:
+        return [active.ActiveSummary(**{k: convert[str(getattr(kinds[k], "__name__", kinds[k]))](v)
+                                        for k, v in row.items()}) for row in csv.DictReader(handle)]
+
+
+def condition_figure(summaries: Sequence[active.ActiveSummary], condition: str) -> Any:
+    """The figure of :func:`plot_condition` (not written)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     rows = [s for s in summaries if s.condition == condition]
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), dpi=110)
+    fig = Figure(figsize=(10, 4.6), dpi=110)
+    FigureCanvasAgg(fig)
+    ax, ax2 = fig.subplots(1, 2)
     _bounds(ax, rows)
     for strategy in QueryStrategy:
         x = _plot_returns(ax, rows, strategy)
@@ -160,20 +174,31 @@ def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], conditi
     ax.set_xlabel("answered queries")
     ax.set_ylabel("mean true return")
     ax.set_title(f"{condition.replace('_', ' ')}: true return ({n} paired trials, 95% CI)", fontsize=9)
-    ax.legend(frameon=False, fontsize=7)
+    ax.legend(frameon=False, fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.18))
     ax2.set_xlabel("answered queries")
     ax2.set_ylabel("fraction of trials")
     ax2.set_ylim(-0.02, 1.02)
     ax2.set_title("IRD path: touches lava / reaches target / reaches gold\n(solid: info-gain, dotted: random)",
                   fontsize=8)
-    ax2.legend(frameon=False, fontsize=6, ncol=2)
+    ax2.legend(frameon=False, fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.18))
     for a in (ax, ax2):
         a.spines[["top", "right"]].set_visible(False)
     fig.tight_layout()
+    return fig
+
+
+def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], condition: str) -> Path:
+    """``active_<condition>.png``: mean true return vs number of queries (both strategies, literal
+    and oracle as lines) and the IRD path's outcome fractions."""
     path = out / f"active_{condition}.png"
-    fig.savefig(path)
-    plt.close(fig)
+    condition_figure(summaries, condition).savefig(path)
     return path
+
+
+def replot(out: Path) -> list[Path]:
+    """Redraw every condition's figure in ``out`` from its ``active.csv`` (nothing is run)."""
+    summaries = read_summaries_csv(out / "active.csv")
+    return [plot_condition(out, summaries, c) for c in dict.fromkeys(s.condition for s in summaries)]
 
 
 def write_report(out: Path, results: Sequence[active.ActiveResult], summaries: Sequence[active.ActiveSummary],

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ird_core import posterior
+from ird_core import posterior, style
 from ird_core.experiments.progress import step_progress
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
@@ -32,8 +32,6 @@ from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
 
 __all__ = ["observed_terrains", "terrain_spreads", "print_spreads", "plot_spreads", "main"]
 
-#: Box colours of the observed terrains, in ``Terrain`` order (dirt, grass, target, lava).
-TERRAIN_BOX_COLOURS: tuple[str, ...] = ("#b08850", "#4c9a2a", "#2a6fdb", "#d8431c")
 
 
 def observed_terrains(instance: lavaland.LavalandInstance) -> list[Terrain]:
@@ -82,7 +80,8 @@ def print_spreads(spreads: dict[str, dict[str, float]]) -> None:
 
 
 def plot_spreads(result: Any, instance: lavaland.LavalandInstance, beta: float, seed: int, out: Path) -> None:
-    """Both views as box plots into ``out`` (a PNG; its folder is created)."""
+    """Both views as box plots into ``out`` (a PNG; its folder is created), one box per observed
+    terrain in the terrain's colour (:mod:`ird_core.style`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -94,7 +93,7 @@ def plot_spreads(result: Any, instance: lavaland.LavalandInstance, beta: float, 
     names = [TERRAIN_NAMES[t] for t in terrains]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     box = axes[0].boxplot([rewards[:, t] for t in terrains], tick_labels=names, patch_artist=True, showfliers=False)
-    axes[0].axhline(0.0, color="0.6", lw=0.8)
+    axes[0].axhline(0.0, color=style.NEUTRAL, lw=0.8)
     axes[0].set_ylabel(r"posterior reward $w_i \cdot \mu_{terrain}$")
     axes[0].set_title("Reward of each terrain's mean observation")
     groups = [cell[instance.test_labels == t] for t in terrains]
@@ -102,9 +101,11 @@ def plot_spreads(result: Any, instance: lavaland.LavalandInstance, beta: float, 
     axes[1].set_ylabel(r"sd over draws of $w_i \cdot F[cell]$")
     axes[1].set_title("Per-cell reward spread, test map")
     for b in (box, box2):
-        for patch, colour in zip(b["boxes"], TERRAIN_BOX_COLOURS):
-            patch.set_facecolor(colour)
-            patch.set_alpha(0.7)
+        for patch, name in zip(b["boxes"], names):
+            patch.set_facecolor(style.terrain_color(name))
+            patch.set_edgecolor(style.INK)
+        for median in b["medians"]:
+            median.set_color(style.INK)
     fig.suptitle(f"IRD posterior (MaxEnt-Z, beta={beta:g}, {result.num_samples} samples), latent_raw "
                  f"seed {seed}: lava is uncertain")
     fig.tight_layout()

@@ -3,8 +3,12 @@
 
 Invariants: ``trials.csv`` has one row per trial x planner in run order (:data:`TRIAL_COLUMNS`),
 ``results.csv`` one row per experiment x condition x planner (:data:`RESULT_COLUMNS`); tables and
-figures list the paper's conditions in the paper's order, then a world file's. matplotlib is
-imported only when figures are drawn.
+figures list the paper's conditions in the paper's order, then a world file's. Figures take every
+colour from :mod:`ird_core.style` (``planner_color``: literal magenta, IRD blue, oracle grey;
+``baseline_color``), keep their legends outside the bars, and mark a bar of height 0 with a
+line and a "0%" (or "0") label, so a 0% bar is visible. :func:`replot` redraws the figures from a
+report's committed ``results.csv`` (:func:`read_results_csv`) without running anything.
+matplotlib is imported only when figures are drawn.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from ird_core import style
 from ird_core.experiments.summaries import RESULT_COLUMNS, CellSummary
 from ird_core.experiments.tables import cells_text, percent, write_csv, write_run_json
 from ird_core.experiments.trials import (
@@ -28,17 +33,18 @@ from ird_core.experiments.trials import (
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
 
-__all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "write_results_csv", "markdown_table", "claim_check",
-           "factorial_note", "write_markdown", "plot_figures", "write_report"]
+__all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "write_results_csv", "read_results_csv",
+           "markdown_table", "claim_check", "factorial_note", "write_markdown", "figure4_figures", "factorial_figures",
+           "plot_figures", "replot", "write_report"]
 
 #: Tables and figures: the paper's conditions, then a world file.
 ORDER: tuple[str, ...] = CONDITIONS + (FILE_CONDITION,)
 Z_LABEL: dict[str, str] = {ZMethod.SAMPLE_Z: "IRD Sample-Z", ZMethod.MAXENT_Z: "IRD MaxEnt-Z"}
-#: (planner, label, colour) of Figure 4's bars.
-FIGURE4: tuple[tuple[str, str, str], ...] = (
-    ("literal", "Literal", "#c44e52"), ("ird_sample_z", Z_LABEL["sample_z"], "#4c72b0"),
-    ("ird_maxent_z", Z_LABEL["maxent_z"], "#55a868"), ("oracle", "Oracle", "#8c8c8c"))
-BASELINE_COLOURS: dict[str, str] = {"initial_state": "#8172b2", "training_features": "#4c72b0", "log_z": "#ccb974"}
+#: (planner, label, colour) of Figure 4's bars (colours: :func:`ird_core.style.planner_color`).
+FIGURE4: tuple[tuple[str, str, str], ...] = tuple(
+    (key, label, style.planner_color(key)) for key, label in (
+        ("literal", "Literal"), ("ird_sample_z", Z_LABEL["sample_z"]), ("ird_maxent_z", Z_LABEL["maxent_z"]),
+        ("oracle", "Oracle")))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +71,20 @@ def _gap(s: CellSummary) -> str:
     if math.isnan(s.gap_closed):
         return "-"
     return f"{percent(s.gap_closed)} [{percent(s.gap_ci_low)}, {percent(s.gap_ci_high)}]"
+
+
+def read_results_csv(path: Path) -> list[CellSummary]:
+    """The summaries of a ``results.csv`` (:func:`write_results_csv`'s inverse, up to float printing)."""
+    import csv
+
+    fields = {f.name: f.type for f in dataclasses.fields(CellSummary)}
+    out = []
+    with open(path, newline="") as handle:
+        for row in csv.DictReader(handle):
+            out.append(CellSummary(**{k: (int(float(v)) if fields[k] in (int, "int") else
+                                          float(v) if fields[k] in (float, "float") else v)
+                                      for k, v in row.items()}))
+    return out
 
 
 def markdown_table(summaries: Sequence[CellSummary], experiment: str) -> str:
@@ -157,9 +177,21 @@ def write_markdown(path: Path, summaries: Sequence[CellSummary], run: RunRecord,
     path.write_text("\n".join(text))
 
 
+def _mark_zero_bars(ax: Any, xs: Any, heights: Any, tops: Any, width: float, colour: str, text: str) -> None:
+    """A bar of height 0 is invisible: draw it as a thick line on the axis with ``text`` above its
+    error bar (``tops``: the upper ends of the intervals)."""
+    for x, h, top in zip(xs, heights, tops):
+        if h == 0:
+            ax.plot([x - width / 2, x + width / 2], [0, 0], color=colour, lw=3, solid_capstyle="butt", zorder=3,
+                    clip_on=False)
+            ax.annotate(text, (x, max(0.0, float(top)) if math.isfinite(top) else 0.0), xytext=(0, 2),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=6, color=style.INK)
+
+
 def _figure4_bars(ax: Any, main: dict[tuple[str, str], CellSummary], conditions: list[str],
-                  planners: list[tuple[str, str, str]], fields: tuple[str, str, str]) -> None:
-    """One group of bars per condition, one bar per planner, with its interval as error bar."""
+                  planners: list[tuple[str, str, str]], fields: tuple[str, str, str], zero: str) -> None:
+    """One group of bars per condition, one bar per planner, with its interval as error bar; a
+    bar of height 0 marked (:func:`_mark_zero_bars`, label ``zero``)."""
     import numpy as np
 
     width = 0.8 / max(len(planners), 1)
@@ -168,46 +200,59 @@ def _figure4_bars(ax: Any, main: dict[tuple[str, str], CellSummary], conditions:
         ss = [main.get((c, key)) for c in conditions]
         mid, low, high = (np.array([math.nan if s is None else getattr(s, a) for s in ss]) for a in fields)
         err = np.nan_to_num(np.clip([mid - low, high - mid], 0, None))
-        ax.bar(x + (j - (len(planners) - 1) / 2) * width, mid, width, yerr=err, capsize=3, label=label,
-               color=colour)
+        xs = x + (j - (len(planners) - 1) / 2) * width
+        ax.bar(xs, mid, width, yerr=err, capsize=3, label=label, color=colour, ecolor=style.INK)
+        _mark_zero_bars(ax, xs, mid, high, width, colour, zero)
     ax.set_xticks(x, [c.replace("_", " ") for c in conditions])
 
 
-def plot_figure4(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
-    """``figure4_lava.png`` (lava fraction, Wilson intervals) and ``figure4_return.png`` (mean
-    true return, t intervals): per condition literal / IRD Sample-Z / IRD MaxEnt-Z / oracle."""
-    import matplotlib
+def _new_figure(width: float, height: float, ncols: int = 1, **kwargs: Any) -> tuple[Any, Any]:
+    """A figure with an Agg canvas (no pyplot state) and its axes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    fig = Figure(figsize=(width, height), dpi=110)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(1, ncols, **kwargs)
 
+
+def figure4_figures(summaries: Sequence[CellSummary]) -> dict[str, Any]:
+    """``{"figure4_lava.png": Figure, "figure4_return.png": Figure}``: lava fraction (Wilson
+    intervals) and mean true return (t intervals) per condition, literal / IRD Sample-Z / IRD
+    MaxEnt-Z / oracle; the legend above the axes."""
     main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
     conditions = [c for c in ORDER if (c, "literal") in main]
     planners = [p for p in FIGURE4 if any((c, p[0]) in main for c in conditions)]
     n = main[conditions[0], "literal"].trials if conditions else 0
-    files = []
+    figures = {}
     for name, field, ylabel, title in (
             ("figure4_lava.png", "lava", "fraction of runs touching lava",
              f"Lavaland: lava encounters ({n} trials per bar, 95% Wilson CI)"),
             ("figure4_return.png", "return", "mean true return",
              f"Lavaland: true return ({n} trials per bar, 95% t CI)")):
-        fig, ax = plt.subplots(figsize=(8.5, 3.4), dpi=110)
+        fig, ax = _new_figure(8.5, 3.6)
         _figure4_bars(ax, main, conditions, planners,
                       ("lava_fraction", "lava_ci_low", "lava_ci_high") if field == "lava" else
-                      ("mean_true_return", "return_ci_low", "return_ci_high"))
+                      ("mean_true_return", "return_ci_low", "return_ci_high"), "0%" if field == "lava" else "0")
         ax.set_ylabel(ylabel)
         if field == "lava":
             ax.set_ylim(0, 1)
         else:
-            ax.axhline(0, color="black", linewidth=0.6)
-        ax.set_title(title)
-        ax.legend(frameon=False, ncol=len(planners), loc="upper left", fontsize=8)
+            ax.axhline(0, color=style.INK, linewidth=0.6)
+        ax.set_title(title, pad=22)
+        ax.legend(frameon=False, ncol=len(planners), loc="lower center", bbox_to_anchor=(0.5, 1.0), fontsize=8)
         ax.spines[["top", "right"]].set_visible(False)
         fig.tight_layout()
-        path = out / name
-        fig.savefig(path)
-        plt.close(fig)
-        files.append(path)
+        figures[name] = fig
+    return figures
+
+
+def plot_figure4(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
+    """:func:`figure4_figures` written into ``out``."""
+    files = []
+    for name, fig in figure4_figures(summaries).items():
+        fig.savefig(out / name)
+        files.append(out / name)
     return files
 
 
@@ -222,31 +267,28 @@ def _factorial_bars(ax: Any, fact: dict[tuple[str, str, str, str], CellSummary],
             if s is None:
                 continue
             pos = gi * (len(BASELINES) + 1) + bi
-            ax.bar(pos, s.lava_fraction, 0.9, color=BASELINE_COLOURS[b],
+            ax.bar(pos, s.lava_fraction, 0.9, color=style.baseline_color(b), ecolor=style.INK,
                    yerr=np.clip([[s.lava_fraction - s.lava_ci_low], [s.lava_ci_high - s.lava_fraction]], 0, 1),
                    capsize=2, label=b if (gi == 0 and legend) else None)
+            _mark_zero_bars(ax, [pos], [s.lava_fraction], [s.lava_ci_high], 0.9, style.baseline_color(b), "0%")
     ax.set_xticks([1, 1 + len(BASELINES) + 1], ["per step", "trajectory"])
     ax.set_title(condition.replace("_", " "), fontsize=9)
     ax.spines[["top", "right"]].set_visible(False)
 
 
-def plot_factorial(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
-    """``factorial_<z>.png`` per Z-approximation run: per condition, lava fraction by
+def factorial_figures(summaries: Sequence[CellSummary]) -> dict[str, Any]:
+    """``{"factorial_<z>.png": Figure}`` per Z-approximation run: per condition, lava fraction by
     granularity x baseline."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
     main = {(s.condition, s.planner) for s in summaries if s.experiment == "main"}
     conditions = [c for c in ORDER if (c, "literal") in main]
     fact = {(s.condition, s.z_approx, s.granularity, s.baseline): s for s in summaries if s.experiment == "factorial"}
-    files = []
+    figures = {}
     for z in Z_METHODS:
         if not any(k[1] == z for k in fact):
             continue
-        fig, axes = plt.subplots(1, len(conditions), figsize=(2.3 * len(conditions) + 0.8, 3.0), dpi=110, sharey=True)
+        fig, axes = _new_figure(2.3 * len(conditions) + 0.8, 3.0, len(conditions), sharey=True)
         axes = np.atleast_1d(axes)
         for ax, c in zip(axes, conditions):
             _factorial_bars(ax, fact, c, z, legend=c == conditions[0])
@@ -255,16 +297,27 @@ def plot_factorial(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
         fig.legend(loc="upper center", ncol=3, frameon=False, fontsize=8)
         fig.suptitle(f"{Z_LABEL[z]}: min granularity x reward baseline", y=0.02, va="bottom", fontsize=9)
         fig.tight_layout(rect=(0, 0.06, 1, 0.9))
-        path = out / f"factorial_{z}.png"
-        fig.savefig(path)
-        plt.close(fig)
-        files.append(path)
+        figures[f"factorial_{z}.png"] = fig
+    return figures
+
+
+def plot_factorial(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
+    """:func:`factorial_figures` written into ``out``."""
+    files = []
+    for name, fig in factorial_figures(summaries).items():
+        fig.savefig(out / name)
+        files.append(out / name)
     return files
 
 
 def plot_figures(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
     """Every figure of the report (:func:`plot_figure4`, :func:`plot_factorial`)."""
     return plot_figure4(out, summaries) + plot_factorial(out, summaries)
+
+
+def replot(out: Path) -> list[Path]:
+    """Redraw every figure of the report in ``out`` from its ``results.csv`` (nothing is run)."""
+    return plot_figures(out, read_results_csv(out / "results.csv"))
 
 
 def write_report(out: Path, results: Sequence[TrialResult], summaries: Sequence[CellSummary],

@@ -65,6 +65,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from ird_core.style import TERRAIN_COLOR_BY_NAME
 from ird_core.vocabulary import TERRAIN_NAMES
 
 __all__ = [
@@ -98,8 +99,8 @@ class Terrain(IntEnum):
 
 NUM_TERRAINS: int = len(TERRAIN_NAMES)
 #: RGB hex per Terrain (pictures, world-file legends): dirt brown, grass green, target yellow,
-#: lava red, gold orange.
-TERRAIN_COLORS: tuple[str, ...] = ("#8b5a2b", "#3c9a3c", "#ffd400", "#e0201b", "#ff8c00")
+#: lava red, gold orange; owned by :mod:`ird_core.style` (by name), listed here in label order.
+TERRAIN_COLORS: tuple[str, ...] = tuple(TERRAIN_COLOR_BY_NAME[name] for name in TERRAIN_NAMES)
 # The terrains the designer saw in training (classifier classes, sensor channels).
 SAFE_TERRAINS: tuple[Terrain, ...] = (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET)
 

@@ -65,7 +65,7 @@ from ird_core.render import save_mission_figure
 from ird_core.worlds import lavaland
 from ird_core.worlds.lavaland import LavalandInstance
 from ird_ros.apps.demo_mission import Mission, Results
-from ird_ros.apps.demo_rounds import rounds_table, save_rounds_figure
+from ird_ros.apps.demo_rounds import outcome_text, rounds_table, save_rounds_figure
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -305,7 +305,8 @@ def report_mission(args: argparse.Namespace, setup: Setup, results: Results) -> 
         save_mission_figure(pictures[-1], inst.train_labels, inst.test_labels,
                             {o.label: o.cells for o in outcomes}, risk_map=results.risk,
                             title=f"{setup.scene}, seed {args.seed}: literal proxy vs IRD",
-                            train_start=inst.train_start, test_start=inst.test_start)
+                            train_start=inst.train_start, test_start=inst.test_start,
+                            outcomes={o.label: outcome_text(o) for o in outcomes})
         print("\nMission results (from Rob's /rob/status):")
         print(f"  {'plan':<18} {'touched lava':>12} {'reached target':>15} {'true return':>12}")
         for o in outcomes:
@@ -316,7 +317,7 @@ def report_mission(args: argparse.Namespace, setup: Setup, results: Results) -> 
               "gold from the world's terrain):")
         print(rounds_table(literal, before, results.rounds))
         pictures.append(setup.run_dir / "rounds.png")
-        save_rounds_figure(pictures[-1], inst.test_labels, inst.test_start, literal, before, results.risk,
+        save_rounds_figure(pictures[-1], inst.test_labels, inst.test_start, literal, before, results.spread,
                            results.rounds,
                            title=f"{setup.scene}, seed {args.seed}: IRD plan before and after each "
                                  f"answer of the {args.designer} designer")

@@ -19,12 +19,14 @@ from typing import Any
 
 import numpy as np
 
+from ird_core import planning
 from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec
 from ird_core.vocabulary import PlanMode
 from ird_core.worlds import evaluation
 from ird_ros.apps.demo_rounds import Outcome, RoundResult, describe_counts, terrain_counts
 from ird_ros.client import IrdClient, plan_request, query_request
 from ird_ros.client.navigation import CURRENT_POSTERIOR, NavigationFeedback, NavigationGoal, NavigationStatus
+from ird_ros.conversions.grids import feature_grid_from_msg as grid_from_msg
 from ird_ros.conversions.posterior import posterior_from_msg
 from ird_ros.graph import names
 
@@ -36,7 +38,8 @@ class Results:
     """What the mission produced so far (filled as it goes, so Ctrl-C keeps what was done)."""
 
     outcomes: list[Outcome] = dataclasses.field(default_factory=list)
-    risk: np.ndarray | None = None
+    risk: np.ndarray | None = None  # the planner's risk map of the IRD plan's posterior (0..100)
+    spread: np.ndarray | None = None  # that posterior's reward spread per cell (the rounds picture's unit)
     rounds: list[RoundResult] = dataclasses.field(default_factory=list)
 
 
@@ -59,6 +62,7 @@ class Mission:
         self.results.outcomes.append(self.navigate(self.goal(f"IRD {MAIN_GRANULARITY}", MAIN_GRANULARITY,
                                                              CURRENT_POSTERIOR, MAIN_BASELINE)))
         self.results.risk = self.ird.risk_map()
+        self.results.spread = self.spread(posterior_from_msg(self.ird.latest(names.TOPIC_POSTERIOR)))
         if self.args.queries:
             self.ask_questions()
 
@@ -95,6 +99,15 @@ class Mission:
         return Outcome(goal.label, cells, result.objective, bool(result.touched_lava), bool(result.reached_target),
                        float("nan") if result.true_return is None else float(result.true_return),
                        evaluation.reaches_gold(self.test_labels, cells))
+
+    def spread(self, post: Any) -> np.ndarray | None:
+        """The posterior's reward spread per cell on the world's test map (``planning.reward_spread``):
+        the rounds picture's risk panels share this one unit (the planner's risk maps are each relative
+        to their own largest spread). None when the test map's layers are not the posterior's features."""
+        grid = grid_from_msg(self.ird.latest(names.TOPIC_TEST_FEATURES))
+        if tuple(grid.layers) != tuple(post.feature_names):
+            return None
+        return planning.reward_spread(grid.features.astype(np.float64), post.samples)
 
     def print_posterior(self, after: int, seconds: float, feedback: NavigationFeedback, last_chance: bool) -> bool:
         """The posterior the navigator's ``/ird/infer`` published (beyond the ``after`` received before the
@@ -160,10 +173,10 @@ class Mission:
         # A person takes as long as they take; the simulated designer answers within a re-sampling.
         record = ird.wait_for_answer(query.query_id, timeout=math.inf if args.designer == "web" else 300.0)
         post = ird.posterior_of(record, timeout=60)
-        risk = ird.risk_map(after=risk_count)
+        ird.risk_map(after=risk_count)  # the planner's new risk map is out
         print(f"round {index}: option {record.chosen} chosen by {record.answered_by}; re-sampled posterior "
               f"({post.samples.shape[0]} samples, R-hat {post.r_hat_max:.3f}) {time.monotonic() - t0:.1f} s after "
               "the question", flush=True)
         plan = self.drive(f"IRD after {index}", MAIN_GRANULARITY, MAIN_BASELINE, post.samples)
         return RoundResult(index, query.query_id, query.information_gain, query.options, int(record.chosen),
-                           str(record.answered_by), plan, counts, risk)
+                           str(record.answered_by), plan, counts, self.spread(post))

@@ -5,7 +5,8 @@
 - :func:`terrain_counts`: cells of each terrain on each option path (what an option "is").
 - :func:`rounds_table`: the text table of the literal plan, the IRD plan and every round.
 - :func:`save_rounds_figure`: the picture: one column per stage (before the questions, then each
-  round), the test map with the plans and the options asked on top, the risk map below.
+  round), the test map with the plans and the options asked on top, the risk maps below on one
+  shared scale; colours from :mod:`ird_core.style`.
 """
 
 from __future__ import annotations
@@ -18,19 +19,16 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Patch
 
-from ird_core.render import draw_path, draw_terrain
-from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES, Terrain
+from ird_core import style
+from ird_core.render import draw_path, draw_risk, draw_terrain, halo_effects, terrain_handles
+from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
 
-__all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "save_rounds_figure",
-           "PANEL_INCHES"]
+__all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "outcome_text",
+           "rounds_figure", "save_rounds_figure", "PANEL_INCHES", "RISK_LABEL"]
 
 PANEL_INCHES = 3.2
 _DPI = 100
-_LITERAL_COLOR, _PLAN_COLOR = "#ff00ff", "#1f3fff"
-# Options by role, visible on every terrain colour and apart from the plans' blue and magenta.
-_CHOSEN_COLOR, _OTHER_COLOR = "#ffffff", "#000000"
 # Terrains an option is described by, in the order of the text.
 _DESCRIBED = (Terrain.LAVA, Terrain.GOLD, Terrain.TARGET)
 
@@ -52,7 +50,8 @@ class Outcome:
 class RoundResult:
     """One question: the options (q arrays of (T+1, 2) cells), the answer, the plan after it.
 
-    ``risk_map`` is the planner's (H, W) risk map (0..100) of the posterior given the answer;
+    ``risk_map`` is an (H, W) risk map (>= 0) of the posterior given the answer, in the unit of the
+    rounds picture's other panels (the demo: the reward spread, ``ird_core.planning.reward_spread``);
     ``option_counts`` (q, NUM_TERRAINS) the cells of each terrain on each option."""
 
     index: int
@@ -119,27 +118,107 @@ def rounds_table(literal: Outcome, before: Outcome, rounds: Sequence[RoundResult
     return "\n".join(rows)
 
 
-def _outcome_text(o: Outcome) -> str:
+def outcome_text(o: Outcome) -> str:
+    """``"LAVA, target; return -5.8"``: what Rob reported at the end of one plan (``GOLD`` when he reached gold)."""
     parts = ["LAVA" if o.touched_lava else "no lava", "target" if o.reached_target else "no target"]
     if o.reached_gold:
         parts.append("GOLD")
     return f"{', '.join(parts)}; return {o.true_return:.1f}"
 
 
-def _draw_map(ax, labels: np.ndarray, start: tuple[int, int]) -> None:
-    draw_terrain(ax, labels, start)
-    ax.get_legend().remove()  # one terrain legend for the whole figure
+def _describe(counts: np.ndarray, labels: np.ndarray) -> str:
+    """:func:`describe_counts` without gold on a map that has none."""
+    shown = [t for t in _DESCRIBED if t != Terrain.GOLD or np.any(np.asarray(labels) == Terrain.GOLD)]
+    return ", ".join(f"{TERRAIN_NAMES[t]} {int(counts[t])}" for t in shown)
 
 
-def _draw_risk(ax, risk: np.ndarray | None):
+def _draw_risk(ax, risk: np.ndarray | None, limits: tuple[float, float]):
     if risk is None:
         ax.axis("off")
         return None
-    image = ax.imshow(np.asarray(risk, dtype=float), cmap="inferno", vmin=0, vmax=100, origin="lower",
-                      interpolation="nearest")
+    image = draw_risk(ax, risk, vmin=limits[0], vmax=limits[1], colorbar=False)
     ax.set_xticks([])
     ax.set_yticks([])
+    ax.set_xlabel("")
+    ax.set_ylabel("")
     return image
+
+
+def _draw_options(ax, r: RoundResult) -> None:
+    """The options asked: the chosen one solid, the others dashed, each a little offset."""
+    q = len(r.options)
+    for k, cells in enumerate(r.options):
+        chosen = k == r.chosen
+        color = style.CHOSEN_OPTION_COLOR if chosen else style.OTHER_OPTION_COLOR
+        width = 3.0 if chosen else 1.5
+        offset = (k - (q - 1) / 2) * 0.16
+        ax.plot(cells[:, 1] + offset, cells[:, 0] + offset, linestyle="solid" if chosen else "dashed", color=color,
+                lw=width, alpha=0.95, zorder=4, path_effects=halo_effects(color, width))
+
+
+#: Default label of the risk row's colour bar (the demo passes the posterior's reward spread).
+RISK_LABEL = "reward spread over the samples (sd)\none scale for every panel"
+
+
+def rounds_figure(
+    test_labels: np.ndarray,
+    test_start: tuple[int, int],
+    literal: Outcome,
+    before: Outcome,
+    risk_before: np.ndarray | None,
+    rounds: Sequence[RoundResult],
+    title: str,
+    *,
+    risk_label: str = RISK_LABEL,
+) -> Figure:
+    """The figure of :func:`save_rounds_figure` (not written)."""
+    ncols = 1 + len(rounds)
+    width_in, height_in = PANEL_INCHES * ncols + 1.0, 2 * PANEL_INCHES + 1.9
+    fig = Figure(figsize=(width_in, height_in), dpi=_DPI)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, ncols, squeeze=False)
+    fig.suptitle(title, fontsize=11, y=1.0 - 0.12 / height_in, va="top")
+    limits = style.shared_risk_limits(risk_before, *(r.risk_map for r in rounds))
+    literal_color, plan_color = style.planner_color("literal"), style.planner_color("ird")
+
+    top = axes[0, 0]
+    draw_terrain(top, test_labels, test_start, legend=False)
+    draw_path(top, literal.cells, "literal", literal_color, -0.12)
+    draw_path(top, before.cells, "IRD", plan_color, 0.12)
+    top.set_title("before the questions", fontsize=9)
+    top.set_xlabel(f"literal: {outcome_text(literal)}\nIRD: {outcome_text(before)}", fontsize=7)
+    image = _draw_risk(axes[1, 0], risk_before, limits)
+    axes[1, 0].set_title("risk map, proxy only", fontsize=8)
+
+    for col, r in enumerate(rounds, start=1):
+        ax = axes[0, col]
+        draw_terrain(ax, test_labels, test_start, legend=False)
+        _draw_options(ax, r)
+        draw_path(ax, r.plan.cells, "plan", plan_color, 0.0)
+        ax.set_title(f"round {r.index}: gain {r.information_gain:.2f} nats\n"
+                     f"chose {r.chosen} ({_describe(r.option_counts[r.chosen], test_labels)})", fontsize=8)
+        ax.set_xlabel(f"plan: {outcome_text(r.plan)}", fontsize=7)
+        ax.set_ylabel("")
+        image = _draw_risk(axes[1, col], r.risk_map, limits) or image
+        axes[1, col].set_title(f"risk map after {r.index} answer{'s' if r.index > 1 else ''}", fontsize=8)
+
+    handles: list = terrain_handles(test_labels)
+    handles += [Line2D([], [], color=literal_color, lw=1.8, label="literal plan"),
+                Line2D([], [], color=plan_color, lw=1.8, label="IRD plan (Rob drove it)")]
+    if rounds:
+        handles += [Line2D([], [], color=style.CHOSEN_OPTION_COLOR, lw=3.0, label="option the designer chose",
+                           path_effects=halo_effects(style.CHOSEN_OPTION_COLOR, 3.0)),
+                    Line2D([], [], color=style.OTHER_OPTION_COLOR, lw=1.5, ls="dashed", label="option not chosen",
+                           path_effects=halo_effects(style.OTHER_OPTION_COLOR, 1.5))]
+    handles.append(Line2D([], [], linestyle="none", label="start", **style.START_MARKER))
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 5), fontsize=7, frameon=False)
+    bottom = 0.65 / height_in
+    fig.subplots_adjust(left=0.5 / width_in, right=1.0 - 0.9 / width_in, bottom=bottom,
+                        top=1.0 - 0.95 / height_in, wspace=0.25, hspace=0.5)
+    if image is not None:  # one colour bar beside the risk row: the one scale of every risk panel
+        bar_ax = fig.add_axes((1.0 - 0.78 / width_in, bottom + 0.02, 0.12 / width_in, 0.34))
+        fig.colorbar(image, cax=bar_ax).set_label(risk_label, fontsize=8)
+    return fig
 
 
 def save_rounds_figure(
@@ -151,62 +230,21 @@ def save_rounds_figure(
     risk_before: np.ndarray | None,
     rounds: Sequence[RoundResult],
     title: str,
+    *,
+    risk_label: str = RISK_LABEL,
 ) -> tuple[int, int]:
     """Write the PNG; returns its (width, height) in pixels.
 
     Columns: "before the questions" (the literal plan and the IRD plan), then one per round (the
     options asked: the chosen one solid white, the others dashed black; the plan Rob drove after the
-    answer in blue). Top row on the test map (row 0 at the bottom), bottom row the planner's risk
-    map of the posterior at that stage (the spread of each cell's reward over the samples, 100 =
-    that map's largest spread, so each map is relative to itself).
+    answer in blue). Top row on the test map (row 0 at the bottom), bottom row the risk map of the
+    posterior at that stage. Every risk panel is drawn on ONE scale, 0 to the largest value of all
+    panels (:func:`ird_core.style.shared_risk_limits`), labelled ``risk_label`` on the one colour
+    bar: the maps must share a unit (the demo passes the reward spread, not the planner's maps,
+    which are each relative to their own largest spread). Colours: :mod:`ird_core.style`; gold
+    appears in the legend and the titles only on a map with gold.
     """
-    ncols = 1 + len(rounds)
-    width_in, height_in = PANEL_INCHES * ncols + 1.0, 2 * PANEL_INCHES + 1.9
-    fig = Figure(figsize=(width_in, height_in), dpi=_DPI)
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(2, ncols, squeeze=False)
-    fig.suptitle(title, fontsize=11, y=1.0 - 0.12 / height_in, va="top")
-
-    top = axes[0, 0]
-    _draw_map(top, test_labels, test_start)
-    draw_path(top, literal.cells, "literal", _LITERAL_COLOR, -0.12)
-    draw_path(top, before.cells, "IRD", _PLAN_COLOR, 0.12)
-    top.set_title("before the questions", fontsize=9)
-    top.set_xlabel(f"literal: {_outcome_text(literal)}\nIRD: {_outcome_text(before)}", fontsize=7)
-    image = _draw_risk(axes[1, 0], risk_before)
-    axes[1, 0].set_title("risk map, proxy only", fontsize=8)
-
-    for col, r in enumerate(rounds, start=1):
-        ax = axes[0, col]
-        _draw_map(ax, test_labels, test_start)
-        q = len(r.options)
-        for k, cells in enumerate(r.options):
-            offset = (k - (q - 1) / 2) * 0.16
-            chosen = k == r.chosen
-            ax.plot(cells[:, 1] + offset, cells[:, 0] + offset, "-" if chosen else "--",
-                    color=_CHOSEN_COLOR if chosen else _OTHER_COLOR, lw=3.0 if chosen else 1.5, alpha=0.95)
-        draw_path(ax, r.plan.cells, "plan", _PLAN_COLOR, 0.0)
-        ax.set_title(f"round {r.index}: gain {r.information_gain:.2f} nats\n"
-                     f"chose {r.chosen} ({describe_counts(r.option_counts[r.chosen])})", fontsize=8)
-        ax.set_xlabel(f"plan: {_outcome_text(r.plan)}", fontsize=7)
-        ax.set_ylabel("")
-        image = _draw_risk(axes[1, col], r.risk_map) or image
-        axes[1, col].set_title(f"risk map after {r.index} answer{'s' if r.index > 1 else ''}", fontsize=8)
-
-    handles: list = [Patch(facecolor=TERRAIN_COLORS[t], edgecolor="black", label=TERRAIN_NAMES[t])
-                     for t in range(NUM_TERRAINS) if np.any(np.asarray(test_labels) == t)]
-    handles += [Line2D([], [], color=_LITERAL_COLOR, lw=1.8, label="literal plan"),
-                Line2D([], [], color=_PLAN_COLOR, lw=1.8, label="IRD plan (Rob drove it)")]
-    if rounds:
-        handles += [Line2D([], [], color="#c8c8c8", lw=3.0, label="option the designer chose (white)"),
-                    Line2D([], [], color=_OTHER_COLOR, lw=1.5, ls="--", label="option not chosen")]
-    handles.append(Line2D([], [], marker="o", color="black", mfc="white", ls="none", label="start"))
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 5), fontsize=7, frameon=False)
-    bottom = 0.65 / height_in
-    fig.subplots_adjust(left=0.5 / width_in, right=1.0 - 0.9 / width_in, bottom=bottom,
-                        top=1.0 - 0.95 / height_in, wspace=0.25, hspace=0.5)
-    if image is not None:  # one colour bar beside the risk row
-        bar_ax = fig.add_axes((1.0 - 0.78 / width_in, bottom + 0.02, 0.12 / width_in, 0.34))
-        fig.colorbar(image, cax=bar_ax, label="risk (100 = the map's largest spread)")
+    fig = rounds_figure(test_labels, test_start, literal, before, risk_before, rounds, title, risk_label=risk_label)
     fig.savefig(path, dpi=_DPI)
+    width_in, height_in = fig.get_size_inches()
     return int(round(width_in * _DPI)), int(round(height_in * _DPI))

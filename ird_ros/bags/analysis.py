@@ -32,6 +32,9 @@ from ird_ros.graph import names
 
 __all__ = ["extract_missions", "extract_query_rounds", "analyze"]
 
+#: Feature maps the posterior plot reads the terrains' mean features from, in order of preference.
+_POSTERIOR_MAPS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+
 
 def extract_missions(bag: str | Path, messages: dict[str, list[BagMessage]] | None = None) -> list[Mission]:
     """The missions of a bag (see :mod:`ird_ros.bags.missions` for how they are segmented).
@@ -59,14 +62,15 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
 
     Plots: ``trajectories_<i>.png`` (one per distinct terrain the missions ran on; without
     any /world/terrain just the paths; none for a bag without missions), ``true_return.png``, ``posterior.png`` (latest
-    /ird/posterior) and ``query_rounds.png`` (each question's options on the map), each only
+    /ird/posterior, per terrain of the latest /world/terrain on the feature map with its layers)
+    and ``query_rounds.png`` (each question's options on the map), each only
     when the bag holds what it needs.
     """
     bag = Path(bag)
     store = typestore or make_typestore()
     topics = summarize(bag)
     messages = read_messages(bag, [*MISSION_TOPICS, names.TOPIC_TERRAIN, names.TOPIC_POSTERIOR,
-                                   names.TOPIC_QUERIES], store)
+                                   names.TOPIC_QUERIES, *_POSTERIOR_MAPS], store)
     missions = missions_from_messages(messages)
     rounds, rounds_terrain = extract_query_rounds(messages)
     firsts = [t.first_ns for t in topics if t.first_ns is not None]
@@ -106,10 +110,21 @@ def _write_plots(out: Path, messages: dict[str, list[BagMessage]], missions: lis
     if any(len(m.status_returns) for m in missions):
         plots.append(str(plot_returns(missions, start_ns, out / "true_return.png")))
     if messages.get(names.TOPIC_POSTERIOR):
-        plots.append(str(plot_posterior(messages[names.TOPIC_POSTERIOR][-1].msg, out / "posterior.png")))
+        post = messages[names.TOPIC_POSTERIOR][-1].msg
+        terrain = terrain_from_msg(terrains[-1].msg) if terrains else None
+        plots.append(str(plot_posterior(post, out / "posterior.png", terrain, _posterior_map(messages, post))))
     if rounds:
         plots.append(str(plot_query_rounds(rounds, rounds_terrain, out / "query_rounds.png")))
     return plots
+
+
+def _posterior_map(messages: dict[str, list[BagMessage]], post: Any) -> Any:
+    """The latest feature map (test features first) whose layers are the posterior's features, or None."""
+    for topic in _POSTERIOR_MAPS:
+        for record in reversed(messages.get(topic, [])):
+            if tuple(record.msg.layers) == tuple(post.feature_names):
+                return record.msg
+    return None
 
 
 def _topic_row(t: TopicSummary, start_ns: int) -> dict[str, Any]:

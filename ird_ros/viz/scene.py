@@ -11,9 +11,10 @@ Invariants:
   ``origin`` with cell size ``resolution`` covers exactly the map. Every grid carries ``red``,
   ``green``, ``blue``, ``alpha`` (uint8) fields for the Grid panel's "RGBA fields" colour mode, plus
   its value field (``class`` uint8 index into the class names, or ``risk`` float32, NaN unknown).
-- Terrain colours are the project's one set, :data:`ird_core.worlds.terrain.TERRAIN_COLORS` (by
-  terrain name); a class name outside :data:`ird_core.worlds.terrain.TERRAIN_NAMES` and an
-  unknown cell are grey. Plan colours are those of the demo's pictures: literal magenta, IRD blue.
+- Every colour is :mod:`ird_core.style`'s, the one set of every picture: terrains by name (a class
+  name the style does not know and an unknown cell are its grey ``UNKNOWN_COLOR``), plans as in
+  the demo's pictures (literal magenta, IRD blue), Rob's trail, and the risk colour map
+  (:func:`ird_core.style.risk_rgb`: pale yellow at 0 to dark red at 100).
 - Lines are in frame ``map`` at height :data:`LINE_Z`, one point per pose (a plan of T+1 cells
   is a line of T+1 points).
 - JSON dicts hold only JSON types (no NaN: a missing number is ``None``).
@@ -28,8 +29,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ird_core import style
 from ird_core.vocabulary import PlanMode, QueryEvent
-from ird_core.worlds.terrain import TERRAIN_COLORS, TERRAIN_NAMES
 from ird_ros.bags.rounds import QueryRecordData, open_queries, record_dict
 
 __all__ = [
@@ -56,10 +57,10 @@ RGBA = tuple[float, float, float, float]
 
 LINE_Z = 0.05
 """Height of lines above the grid (metres), so they are drawn over it."""
-LITERAL_COLOR = "#ff00ff"
-IRD_COLOR = "#1f3fff"
-ROB_COLOR = "#00c8ff"
-UNKNOWN_COLOR = "#9a9a9a"
+LITERAL_COLOR = style.LITERAL_COLOR
+IRD_COLOR = style.IRD_COLOR
+ROB_COLOR = style.ROB_COLOR
+UNKNOWN_COLOR = style.UNKNOWN_COLOR
 
 
 def hex_rgba(color: str, alpha: float = 1.0) -> RGBA:
@@ -133,7 +134,7 @@ _RGBA_FIELDS: tuple[tuple[str, str], ...] = (("red", "uint8"), ("green", "uint8"
 
 def _class_palette(class_names: Sequence[str]) -> np.ndarray:
     """(C + 1, 4) uint8 colours: one per class name, the last for unknown cells."""
-    colors = [TERRAIN_COLORS[TERRAIN_NAMES.index(n)] if n in TERRAIN_NAMES else UNKNOWN_COLOR for n in class_names]
+    colors = [style.terrain_color(n) for n in class_names]
     return np.array([[round(v * 255) for v in hex_rgba(c)] for c in [*colors, UNKNOWN_COLOR]], dtype=np.uint8)
 
 
@@ -165,18 +166,19 @@ def risk_layer(costs: np.ndarray, *, resolution: float, origin: Sequence[float],
     """The planner's risk map (OccupancyGrid values 0..100, -1 unknown) as a grid.
 
     Returns:
-        field ``risk`` (float32 0..100, NaN unknown) and RGBA: white (0) to red (100), opacity
-        growing with the risk (0.3 to 0.9), unknown cells transparent.
+        field ``risk`` (float32 0..100, NaN unknown) and RGBA: the style's risk colours
+        (:func:`ird_core.style.risk_rgb` of risk / 100), opacity growing with the risk (0.3 to 0.9),
+        unknown cells transparent.
     """
     costs = np.asarray(costs)
     if costs.ndim != 2:
         raise ValueError(f"costs: expected an (H, W) array, got shape {costs.shape}")
     known = costs >= 0
     frac = np.where(known, np.clip(costs, 0, 100), 0).astype(np.float64) / 100.0
-    fade = np.round(255 * (1.0 - frac)).astype(np.uint8)
+    rgb = style.risk_rgb(frac)
     fields = (("risk", "float32"), *_RGBA_FIELDS)
-    arrays = {"risk": np.where(known, costs, np.nan).astype(np.float32), "red": np.full(costs.shape, 255, np.uint8),
-              "green": fade, "blue": fade,
+    arrays = {"risk": np.where(known, costs, np.nan).astype(np.float32), "red": rgb[..., 0],
+              "green": rgb[..., 1], "blue": rgb[..., 2],
               "alpha": np.where(known, np.round(255 * (0.3 + 0.6 * frac)), 0).astype(np.uint8)}
     h, w = costs.shape
     return GridLayer(frame_id, w, h, float(resolution), (float(origin[0]), float(origin[1])), fields,

@@ -1,4 +1,5 @@
-"""Mission figures: the PNG is written at the stated size, in the paper's colours, row 0 at the bottom."""
+"""Mission figures: the PNG is written at the stated size, in the style's colours (ird_core.style), row 0 at
+the bottom; risk maps on the scale they are given."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 
-from ird_core import render
+from ird_core import render, style
 from ird_core.worlds.terrain import TERRAIN_COLORS, TEST_MAP, TRAIN_MAP, Terrain, sample_terrain
 
 
@@ -44,9 +45,9 @@ def test_mission_png_has_size_and_terrain_colours(tmp_path: Path, maps: tuple, w
     assert image.shape[:2] == (height, width)
     for k in (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET, Terrain.LAVA):
         assert colour_present(image, TERRAIN_COLORS[k]), k
-    assert colour_present(image, "#1f3fff")  # first path colour
-    # The risk panel adds pixels of its colour map's bright end only when a risk map is given.
-    assert colour_present(image, "#fcffa4", tolerance=6 / 255) == with_risk
+    assert colour_present(image, style.LITERAL_COLOR) and colour_present(image, style.IRD_COLOR)  # by planner name
+    # The risk panel adds pixels of its colour map's dark end only when a risk map is given.
+    assert colour_present(image, style.RISK_STOPS[-1], tolerance=6 / 255) == with_risk
 
 
 def test_row_zero_is_drawn_at_the_bottom(tmp_path: Path) -> None:
@@ -74,6 +75,27 @@ def test_draw_functions_on_a_user_axes() -> None:
     assert len(ax.images) == 1
     assert any(line.get_label() == "p" for line in ax.get_lines())
     figure.canvas.draw()
+
+
+def test_draw_risk_keeps_the_scale_it_is_given() -> None:
+    figure = Figure(figsize=(3, 3), dpi=50)
+    FigureCanvasAgg(figure)
+    ax = figure.subplots()
+    image = render.draw_risk(ax, np.full((3, 3), 0.5), vmin=0.0, vmax=2.0, colorbar=False)
+    assert image.get_clim() == (0.0, 2.0) and image.norm(0.5) == pytest.approx(0.25)
+    with pytest.raises(ValueError, match="risk_map"):
+        render.draw_risk(ax, np.full((3, 3), -1.0))
+    with pytest.raises(ValueError, match="scale"):
+        render.draw_risk(ax, np.zeros((3, 3)), vmin=1.0, vmax=1.0)
+
+
+def test_outcome_is_read_off_the_map() -> None:
+    labels = np.zeros((3, 3), dtype=np.int64)
+    labels[0, 1], labels[0, 2] = Terrain.LAVA, Terrain.TARGET
+    assert render.path_outcome(labels, [(0, 0), (0, 1), (0, 2)]) == "lava, target"
+    assert render.path_outcome(labels, [(0, 0)]) == "no lava, no target"
+    labels[2, 2] = Terrain.GOLD
+    assert render.path_outcome(labels, [(0, 0), (1, 2), (2, 2)]) == "no lava, no target, gold"
 
 
 def test_render_errors(tmp_path: Path, maps: tuple) -> None:

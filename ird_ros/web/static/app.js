@@ -2,17 +2,35 @@
 // and sends clicks as POST /answer. Row 0 of every grid is the BOTTOM row of the drawing.
 "use strict";
 
-// Same colours as ird_core.render (TERRAIN_COLORS and the path colours).
-const TERRAIN_COLORS = {dirt: "#8b5a2b", grass: "#3c9a3c", target: "#ffd400", lava: "#e0201b", gold: "#ff8c00"};
-const UNKNOWN_COLOR = "#b8b8b8";
-const PATH_COLORS = ["#1f3fff", "#ff00ff", "#00c8ff", "#000000", "#8a2be2"];
+// Every colour comes from IRD_STYLE (colors.js, generated from ird_core/style.py like every picture's).
+const TERRAIN_COLORS = IRD_STYLE.terrains;
+const UNKNOWN_COLOR = IRD_STYLE.unknown;
+const INK = IRD_STYLE.ink, PAPER = IRD_STYLE.paper, NEUTRAL = IRD_STYLE.neutral;
 
 let state = null;
 let socket = null;
 
 const $ = (id) => document.getElementById(id);
 const letter = (k) => String.fromCharCode(65 + k);
-const pathColor = (k) => PATH_COLORS[k % PATH_COLORS.length];
+const pathColor = (k) => IRD_STYLE.options[k % IRD_STYLE.options.length];
+
+// "#rrggbb" -> [r, g, b] in 0..255.
+const rgbOf = (hex) => [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+const withAlpha = (hex, a) => `rgba(${rgbOf(hex).join(", ")}, ${a})`;
+// Relative luminance (WCAG 2), as ird_core.style.luminance.
+function luminance(hex) {
+  const lin = rgbOf(hex).map((v) => { const c = v / 255; return c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4; });
+  return 0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2];
+}
+// The outline that keeps a line visible on any terrain (ird_core.style.halo_color).
+const haloOf = (hex) => (luminance(hex) > 0.5 ? INK : PAPER);
+// The risk colour map at fraction t (0..1): linear between IRD_STYLE.risk_stops (ird_core.style.risk_rgb).
+function riskColor(t) {
+  const stops = IRD_STYLE.risk_stops, x = Math.min(1, Math.max(0, t)) * (stops.length - 1);
+  const i = Math.min(stops.length - 2, Math.floor(x)), f = x - i;
+  const a = rgbOf(stops[i]), b = rgbOf(stops[i + 1]);
+  return `rgb(${a.map((v, k) => Math.round(v + (b[k] - v) * f)).join(", ")})`;
+}
 
 function el(tag, attrs = {}, ...children) {
   const node = document.createElement(tag);
@@ -70,7 +88,7 @@ function drawPaths(ctx, geo, options, widthScale) {
     const off = (k - (q - 1) / 2) * geo.cell * 0.16;
     const pts = cells.map(([r, c]) => [geo.cx(c) + off, geo.cy(r) + off]);
     ctx.lineJoin = "round"; ctx.lineCap = "round";
-    for (const [color, width] of [["white", geo.cell * widthScale + 3], [pathColor(k), geo.cell * widthScale]]) {
+    for (const [color, width] of [[haloOf(pathColor(k)), geo.cell * widthScale + 3], [pathColor(k), geo.cell * widthScale]]) {
       ctx.strokeStyle = color; ctx.lineWidth = width;
       ctx.beginPath();
       pts.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
@@ -85,16 +103,16 @@ function drawEndLabels(ctx, geo, options) {
     const [r, c] = cells[cells.length - 1];
     const [x, y, s] = geo.rect(r, c);
     const inset = 2 + 3 * k;
-    ctx.strokeStyle = "white"; ctx.lineWidth = 5;
+    ctx.strokeStyle = haloOf(pathColor(k)); ctx.lineWidth = 5;
     ctx.strokeRect(x + inset, y + inset, s - 2 * inset, s - 2 * inset);
     ctx.strokeStyle = pathColor(k); ctx.lineWidth = 3;
     ctx.strokeRect(x + inset, y + inset, s - 2 * inset, s - 2 * inset);
     // Badges in different corners, so options ending on the same cell show every letter.
     const rad = Math.max(9, geo.cell * 0.2), corner = [[0, 0], [1, 1], [1, 0], [0, 1]][k % 4];
     const bx = x + (corner[0] ? s - rad - 2 : rad + 2), by = y + (corner[1] ? s - rad - 2 : rad + 2);
-    ctx.fillStyle = pathColor(k); ctx.strokeStyle = "white"; ctx.lineWidth = 2;
+    ctx.fillStyle = pathColor(k); ctx.strokeStyle = haloOf(pathColor(k)); ctx.lineWidth = 2;
     ctx.beginPath(); ctx.arc(bx, by, rad, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
-    ctx.fillStyle = "white"; ctx.font = `bold ${Math.round(rad * 1.2)}px sans-serif`;
+    ctx.fillStyle = haloOf(pathColor(k)); ctx.font = `bold ${Math.round(rad * 1.2)}px sans-serif`;
     ctx.textAlign = "center"; ctx.textBaseline = "middle";
     ctx.fillText(letter(k), bx, by + 1);
   });
@@ -103,12 +121,12 @@ function drawEndLabels(ctx, geo, options) {
 function drawStart(ctx, geo, start) {
   if (!start) return;
   const x = geo.cx(start[1]), y = geo.cy(start[0]), rad = Math.max(7, geo.cell * 0.24);
-  ctx.fillStyle = "white"; ctx.strokeStyle = "black"; ctx.lineWidth = 2.5;
+  ctx.fillStyle = PAPER; ctx.strokeStyle = INK; ctx.lineWidth = 2.5;
   ctx.beginPath(); ctx.arc(x, y, rad, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
 }
 
 function placeholder(ctx, w, h, text) {
-  ctx.fillStyle = "#667"; ctx.font = "14px sans-serif"; ctx.textAlign = "center";
+  ctx.fillStyle = NEUTRAL; ctx.font = "14px sans-serif"; ctx.textAlign = "center";
   ctx.fillText(text, w / 2, h / 2);
 }
 
@@ -128,7 +146,7 @@ function drawMap() {
   if (!world) return placeholder(ctx, w, h, "No map yet: waiting for the robot's world.");
   const geo = gridGeometry(world.height, world.width, w, h);
   fillGrid(ctx, geo, (r, c) => terrainColor(world, world.classes[r][c]));
-  ctx.strokeStyle = "rgba(0,0,0,0.18)"; ctx.lineWidth = 1;
+  ctx.strokeStyle = withAlpha(INK, 0.18); ctx.lineWidth = 1;
   for (let r = 0; r <= world.height; r++) {
     ctx.beginPath(); ctx.moveTo(geo.x0, geo.y0 + r * geo.cell); ctx.lineTo(geo.x0 + geo.W * geo.cell, geo.y0 + r * geo.cell); ctx.stroke();
   }
@@ -149,30 +167,29 @@ function drawRisk() {
     return placeholder(ctx, w, h, "No risk map yet");
   }
   const geo = gridGeometry(risk.height, risk.width, w, h);
-  // Colours span this map's own range, so that where Rob is MORE unsure stands out.
-  const known = risk.values.flat().filter((v) => v >= 0);
-  const lo = known.length ? Math.min(...known) : 0, hi = known.length ? Math.max(...known) : 100;
-  $("risk-lo").textContent = `${lo} least unsure`;
-  $("risk-hi").textContent = `${hi} most unsure`;
+  // The planner's scale as it is, 0..100 (100 = this map's largest spread), in the pictures' risk colours.
+  $("risk-lo").textContent = "0 = sure";
+  $("risk-hi").textContent = "100 = most unsure cell";
   fillGrid(ctx, geo, (r, c) => {
-    const v = risk.values[r][c], t = hi > lo ? (v - lo) / (hi - lo) : 0.5;
-    // White (least unsure) to dark red (most unsure).
-    return v < 0 ? UNKNOWN_COLOR
-      : `rgb(${Math.round(255 - 75 * t)}, ${Math.round(255 - 235 * t)}, ${Math.round(255 - 225 * t)})`;
+    const v = risk.values[r][c];
+    return v < 0 ? UNKNOWN_COLOR : riskColor(v / 100);
   });
   const query = state.query;
   if (query && risk.height === (state.world || {}).height && risk.width === (state.world || {}).width) {
     drawPaths(ctx, geo, query.options, 0.12);
     drawStart(ctx, geo, query.options[0][0]);
   }
-  ctx.strokeStyle = "#999"; ctx.lineWidth = 1;
+  ctx.strokeStyle = NEUTRAL; ctx.lineWidth = 1;
   ctx.strokeRect(geo.x0 + 0.5, geo.y0 + 0.5, geo.cell * geo.W - 1, geo.cell * geo.H - 1);
 }
 
 function drawLegend() {
   const legend = $("legend");
   legend.replaceChildren();
-  const names = state && state.world ? state.world.class_names : Object.keys(TERRAIN_COLORS);
+  // Only the terrains on the map: no gold entry on a map without gold.
+  const world = state && state.world;
+  const present = world ? new Set(world.classes.flat()) : null;
+  const names = world ? world.class_names.filter((_, cls) => present.has(cls)) : [];
   for (const name of names) {
     legend.append(el("span", {class: "chip"}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || UNKNOWN_COLOR}}), name));
   }
@@ -216,7 +233,7 @@ function renderOptions() {
     const button = el("button", {
       id: `option-${k}`, class: "option", type: "button", disabled: pending,
       "data-query-id": String(query.query_id), "data-option": String(k),
-      style: {borderColor: pathColor(k)},
+      style: {borderColor: luminance(pathColor(k)) > 0.5 ? INK : pathColor(k)},
       onclick: () => sendAnswer(query.query_id, k),
     },
     el("span", {class: "swatch big", style: {background: pathColor(k)}}),
@@ -254,7 +271,7 @@ function renderPosterior() {
       el("div", {class: "bar-mean " + (m >= 0 ? "pos" : "neg"), style: m >= 0
         ? {left: "50%", width: `${50 * m / scale}%`} : {left: `${50 + 50 * m / scale}%`, width: `${-50 * m / scale}%`}}));
     table.append(el("tr", {},
-      el("td", {}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || "#ddd"}}), " " + name),
+      el("td", {}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || UNKNOWN_COLOR}}), " " + name),
       el("td", {class: "num"}, `${m >= 0 ? "+" : "−"}${Math.abs(m).toFixed(2)} ± ${s.toFixed(2)}`),
       el("td", {class: "bar-cell"}, bar)));
   });
@@ -273,12 +290,12 @@ function renderHistory() {
   }
   for (const rec of rows.slice().reverse()) {
     const opts = el("td", {});
-    rec.options.forEach((_, k) => opts.append(el("span", {class: "tag", style: {background: pathColor(k)}}, letter(k))));
+    rec.options.forEach((_, k) => opts.append(el("span", {class: "tag", style: {background: pathColor(k), color: haloOf(pathColor(k))}}, letter(k))));
     body.append(el("tr", {id: `history-${rec.query_id}`, "data-query-id": String(rec.query_id)},
       el("td", {}, `#${rec.query_id}`),
       opts,
       el("td", {class: "num"}, `${rec.information_gain.toFixed(3)} nats`),
-      el("td", {}, el("span", {class: "tag", style: {background: pathColor(rec.chosen)}}, letter(rec.chosen)), ` Option ${letter(rec.chosen)}`),
+      el("td", {}, el("span", {class: "tag", style: {background: pathColor(rec.chosen), color: haloOf(pathColor(rec.chosen))}}, letter(rec.chosen)), ` Option ${letter(rec.chosen)}`),
       el("td", {}, rec.answered_by || "")));
   }
 }
@@ -332,6 +349,11 @@ function connect() {
     setTimeout(connect, 1000);
   };
 }
+
+// The risk scale's bar: the risk colour map's stops, left (0) to right (100).
+document.querySelectorAll(".scale .bar").forEach((bar) => {
+  bar.style.background = `linear-gradient(to right, ${IRD_STYLE.risk_stops.join(", ")})`;
+});
 
 fetch("/state").then((r) => r.json()).then(render).catch(() => {});
 connect();
