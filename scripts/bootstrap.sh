@@ -2,10 +2,14 @@
 # Set up (or bring up to date) the project's venv in .venv:
 #   1. create .venv from python3 (3.11),
 #   2. pip install the pinned requirements.txt (ROS 2 Jazzy wheels, numpy, ...),
-#   3. build msgs_config/ird_msgs with cmake and install it into the venv,
-#   4. install this project (ird_core, ird_ros) editable.
+#   3. pip install the pinned requirements-docs.txt (Sphinx, myst-parser, furo: the docs site),
+#   4. build msgs_config/ird_msgs with cmake and install it into the venv,
+#   5. install this project (ird_core, ird_ros) editable.
 # Each step keeps a stamp (a hash of its inputs) in .venv/.ird-stamps and is skipped
 # when its inputs did not change, so a second run takes about a second.
+# Each step prints a line when it starts and when it ends; while pip or cmake runs, a line
+# now and then says how far it got (scripts/lib/bootstrap_progress.sh; the full output goes to
+# .venv/build/logs/); the last line gives the total time.
 # Environment: IRD_PYTHON (interpreter to create the venv from, default python3),
 #              IRD_BOOTSTRAP_FORCE=1 (redo every step), IRD_BOOTSTRAP_VERBOSE=1 (full logs).
 set -euo pipefail
@@ -18,24 +22,34 @@ MSGS_SRC="$ROOT/msgs_config/ird_msgs"
 MSGS_BUILD="$VENV/build/ird_msgs"
 LOG_DIR="$VENV/build/logs"
 
+START_NS="$(date +%s%N)"
 say() { printf '[bootstrap] %s\n' "$*"; }
+since() { # seconds since the given date +%s%N, one decimal
+  local ns=$(( $(date +%s%N) - $1 ))
+  printf '%d.%d s' $((ns / 1000000000)) $(( (ns / 100000000) % 10 ))
+}
+# shellcheck source=lib/bootstrap_progress.sh
+source "$ROOT/scripts/lib/bootstrap_progress.sh"
 die() { printf '[bootstrap] ERROR: %s\n' "$*" >&2; exit 1; }
 hash_files() { # hash of the names and contents of the given files (sorted)
   (cd "$ROOT" && LC_ALL=C sort -z | xargs -0 sha256sum) | sha256sum | cut -d' ' -f1
 }
 stamp_ok() { [[ "${IRD_BOOTSTRAP_FORCE:-0}" != 1 && -f "$STAMPS/$1" && "$(cat "$STAMPS/$1")" == "$2" ]]; }
 stamp_set() { mkdir -p "$STAMPS"; printf '%s\n' "$2" > "$STAMPS/$1"; }
-# Run a step quietly; on failure show the tail of its log and stop.
+# Run a step into its log, printing progress lines (ird_bootstrap_progress) and the step's time;
+# on failure show the tail of its log and stop.
 run_logged() {
   local name="$1"; shift
-  local log="$LOG_DIR/$name.log"
+  local log="$LOG_DIR/$name.log" t0
+  t0="$(date +%s%N)"
   mkdir -p "$LOG_DIR"
   if [[ "${IRD_BOOTSTRAP_VERBOSE:-0}" == 1 ]]; then
     "$@" 2>&1 | tee "$log"
-  elif ! "$@" > "$log" 2>&1; then
+  elif ! "$@" 2>&1 | tee "$log" | ird_bootstrap_progress "$name"; then
     tail -n 40 "$log" >&2
     die "step '$name' failed (full log: $log). Fix the cause, or start over with: rm -rf .venv"
   fi
+  say "  $name: done in $(since "$t0")"
 }
 
 # A venv python that inherited another venv's bootstrap guard would skip setting
@@ -44,7 +58,10 @@ unset _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
 # One bootstrap at a time per checkout (two test runs may start together).
 exec 8> "$ROOT/.bootstrap.lock"
-flock 8 || die "cannot lock $ROOT/.bootstrap.lock"
+if ! flock -n 8; then
+  say "waiting for another bootstrap of this checkout to finish (.bootstrap.lock)"
+  flock 8 || die "cannot lock $ROOT/.bootstrap.lock"
+fi
 
 # --- 1. the venv ---------------------------------------------------------------
 BASE_PY="${IRD_PYTHON:-python3}"
@@ -63,14 +80,26 @@ REQ_HASH="$( { printf '%s\0' requirements.txt | hash_files; echo "$PY_TAG"; } | 
 if stamp_ok requirements "$REQ_HASH"; then
   say "requirements: up to date"
 else
-  say "requirements: pip install -r requirements.txt (about 1 minute the first time)"
+  say "requirements: pip install -r requirements.txt ($(grep -c '^[A-Za-z]' "$ROOT/requirements.txt") pinned packages: the ROS 2 Jazzy wheels, numpy, scipy, ...; minutes the first time)"
   run_logged pip-install "$PY" -m pip install --disable-pip-version-check --no-input \
     -r "$ROOT/requirements.txt"
   rm -f "$STAMPS/ird_msgs" "$STAMPS/project"   # rebuild against the new wheels
   stamp_set requirements "$REQ_HASH"
 fi
 
-# --- 3. ird_msgs ------------------------------------------------------------------
+# --- 3. the docs site's requirements ----------------------------------------------------
+# Constrained by requirements.txt, so they never move one of its pins.
+DOCS_HASH="$( { printf '%s\0' requirements-docs.txt | hash_files; echo "$REQ_HASH"; } | sha256sum | cut -d' ' -f1)"
+if stamp_ok docs "$DOCS_HASH"; then
+  say "docs requirements: up to date"
+else
+  say "docs requirements: pip install -r requirements-docs.txt (Sphinx, myst-parser, furo: the docs site)"
+  run_logged pip-install-docs "$PY" -m pip install --disable-pip-version-check --no-input \
+    -r "$ROOT/requirements-docs.txt" -c "$ROOT/requirements.txt"
+  stamp_set docs "$DOCS_HASH"
+fi
+
+# --- 4. ird_msgs ------------------------------------------------------------------
 MSGS_HASH="$( { (cd "$ROOT" && find msgs_config/ird_msgs -type f -print0) | hash_files; echo "$REQ_HASH"; } \
   | sha256sum | cut -d' ' -f1)"
 if stamp_ok ird_msgs "$MSGS_HASH"; then
@@ -99,7 +128,7 @@ else
   stamp_set ird_msgs "$MSGS_HASH"
 fi
 
-# --- 4. the project, editable -------------------------------------------------------
+# --- 5. the project, editable -------------------------------------------------------
 PROJ_HASH="$( { printf '%s\0' pyproject.toml | hash_files; echo "$REQ_HASH"; } | sha256sum | cut -d' ' -f1)"
 if stamp_ok project "$PROJ_HASH"; then
   say "project: up to date"
@@ -113,4 +142,4 @@ fi
 # --- sanity: the pieces import together ---------------------------------------------
 "$PY" -c 'import rclpy, ird_msgs.msg, ird_core, ird_ros' \
   || die "the venv is incomplete (see the error above); start over with: rm -rf .venv && bash scripts/bootstrap.sh"
-say "ready: $PY"
+say "ready: $PY (set-up took $(since "$START_NS"))"
