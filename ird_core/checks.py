@@ -22,8 +22,8 @@ import numpy as np
 
 from ird_core.vocabulary import ZMethod, parse
 
-__all__ = ["MAX_ABS_WEIGHT", "MAX_ABS_FEATURE", "BETA_RANGE", "PRIOR_SIGMA_RANGE", "RANGES", "check_int",
-           "check_real", "check_array", "check_magnitude", "check_posterior_arguments"]
+__all__ = ["MAX_ABS_WEIGHT", "MAX_ABS_FEATURE", "BETA_RANGE", "PRIOR_SIGMA_RANGE", "MAX_TEXT_LENGTH", "RANGES",
+           "check_int", "check_real", "check_array", "check_magnitude", "check_posterior_arguments"]
 
 # Checked: sample_posterior (both methods) and plan_path (every mode, log_z) at the corners of
 # these ranges give finite results (tests/core/test_ranges.py); at 1e6 the samplers did not.
@@ -31,6 +31,9 @@ MAX_ABS_WEIGHT = 1e4  # > the prior's largest sigma by far: posterior samples st
 MAX_ABS_FEATURE = 1e3
 BETA_RANGE = (0.0, 1e3)
 PRIOR_SIGMA_RANGE = (1e-3, 1e3)
+#: Longest free-text field of a request (a plan's label, who answered a query), in characters:
+#: such text is echoed in answers and published records.
+MAX_TEXT_LENGTH = 256
 #: Closed ranges of scalars (``(low, high)``) and magnitude limits of arrays (``high`` only, as
 #: ``(None, high)``), by field name.
 RANGES: dict[str, tuple[float | None, float]] = {

@@ -26,6 +26,16 @@ GIVE_UP_R_HAT: float = 1.4
 #: same draws).
 _MIN_BLOCK: int = 50
 
+#: With a time budget, the iterations of the first run that always complete before the budget
+#: is first checked: the library's default fixed-length run (``DEFAULT_MIN_ITERATIONS``: 120
+#: MaxEnt-Z, 100 Sample-Z), so a small request's first check is always that run's.
+_FIRST_UNCUT: int = 120
+
+#: With a time budget the chains advance in sub-blocks of about this many wall seconds
+#: (measured on the previous block) and the budget is checked after each, in the first run
+#: too: a run that asks for many samples per chain stops within about this much of its budget.
+_BUDGET_STRIDE_S: float = 0.5
+
 
 @dataclass(frozen=True)
 class RunUntil:
@@ -47,9 +57,13 @@ class RunUntil:
 
     Bounds: ``max_iterations`` (post-warm-up iterations per chain, never below ``n0``) is the
     deterministic one: the same seed gives the same samples on any machine. ``time_budget_s``
-    (wall seconds of the whole call, checked between blocks, so it may be exceeded by one
-    block) is only a safety stop and makes the result machine-dependent when it is hit. Either
-    way the posterior says so (``converged`` False, ``stop_reason``).
+    (wall seconds of the whole call, from before the model is built) is only a safety stop and
+    makes the result machine-dependent when it is hit. It is checked after the warm-up and the
+    first ``min(n0, 120)`` iterations, then every ``_BUDGET_STRIDE_S`` (0.5 s) of sampling, in
+    the first run as in the extension (so it holds for any number of samples); the draws are
+    the same sub-blocks or not. Either way the posterior says so (``converged`` False,
+    ``stop_reason``); a budget spent before every chain has ``ceil(num_samples / C)`` draws is
+    a ``ValueError`` naming ``num_samples`` (there is nothing to return).
 
     Attributes:
         r_hat: largest acceptable split R-hat, ``>= 1``.
@@ -110,8 +124,9 @@ class SamplerRun(NamedTuple):
 
 def _window_diagnostics(states: np.ndarray, n: int, first: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The diagnostic window, the latest ``max(first, ceil(n / 2))`` of ``n`` iterations of
-    ``(C, n, d)`` states, with its R-hat (NaN below 4 draws) and bulk ESS (NaN below 8)."""
-    window = states[:, n - max(first, -(-n // 2)):]
+    ``(C, n, d)`` states (all of them while ``n < first``), with its R-hat (NaN below 4 draws)
+    and bulk ESS (NaN below 8)."""
+    window = states[:, max(0, n - max(first, -(-n // 2))):]
     w = window.shape[1]
     r_hat = mcmc.rank_normalized_r_hat(window) if w >= 4 else np.full(states.shape[2], np.nan)
     ess = mcmc.bulk_effective_sample_size(window) if w >= 8 else np.full(states.shape[2], np.nan)
@@ -132,18 +147,59 @@ def _stop_reason(rule: RunUntil, r_hat: np.ndarray, ess: np.ndarray, need: float
     return ""
 
 
-def _block_progress(progress: "Callable[[int, int], None] | None", done: int, step: int
-                    ) -> "Callable[[int, int], None] | None":
-    """A block's ``progress(i, step)`` reported as ``progress(done + i, done + step)``."""
-    return None if progress is None else (lambda i, _t: progress(done + i, done + step))
-
-
 def _kept_draws(window: int, per_chain: int, evenly: bool) -> tuple[np.ndarray, int]:
     """Indices of the ``per_chain`` draws kept from a window of ``window`` iterations, and the thinning."""
     if evenly:
         return np.round(np.linspace(0, window - 1, per_chain)).astype(np.int64), 1
     thin = window // per_chain
     return window - 1 - thin * np.arange(per_chain - 1, -1, -1), thin
+
+
+def _with_total(progress: "Callable[[int, int], None] | None", done: int, total: int
+                ) -> "Callable[[int, int], None] | None":
+    """A block's ``progress(i, step)`` reported as ``progress(done + i, total)``."""
+    return None if progress is None else (lambda i, _t: progress(done + i, total))
+
+
+class _Chains:
+    """The post-warm-up chains as they grow: their states in pieces, exact accepted counts,
+    evaluations, the first run's result and the latest one (whose continuation extends them)."""
+
+    def __init__(self, head: mcmc.MCMCResult, iterations: int, seconds: float) -> None:
+        self.pieces, self.n, self.head, self.last = [head.draws], iterations, head, head
+        self.accepted = np.rint(head.acceptance_rate * iterations)
+        self.evaluations = head.num_evaluations
+        self.seconds_per_iteration = seconds / max(iterations, 1)
+
+    def extend(self, target: mcmc.LogDensityFn, step: int, progress: "Callable[[int, int], None] | None") -> None:
+        t0 = time.monotonic()
+        self.last = mcmc.continue_chains(target, self.last.continuation, step, progress=progress)
+        self.seconds_per_iteration = (time.monotonic() - t0) / step
+        self.pieces.append(self.last.draws)
+        self.accepted += np.rint(self.last.acceptance_rate * step)
+        self.evaluations += self.last.num_evaluations
+        self.n += step
+
+    def states(self) -> np.ndarray:
+        if len(self.pieces) > 1:
+            self.pieces = [np.concatenate(self.pieces, axis=1)]
+        return self.pieces[0]
+
+
+def _spent(rule: RunUntil, started: float) -> bool:
+    return rule.time_budget_s is not None and time.monotonic() - started >= rule.time_budget_s
+
+
+def _advance(chains: _Chains, target: mcmc.LogDensityFn, until: int, rule: RunUntil, started: float,
+             progress: "Callable[[int, int], None] | None", done: int) -> None:
+    """Extend the chains to ``until`` iterations: in one block without a time budget; with one,
+    in sub-blocks of about ``_BUDGET_STRIDE_S`` seconds, stopping early once the budget is spent
+    (the draws do not depend on the sub-blocks: ``continue_chains`` continues the same stream)."""
+    while chains.n < until and not _spent(rule, started):
+        step = until - chains.n
+        if rule.time_budget_s is not None:
+            step = min(step, max(1, int(_BUDGET_STRIDE_S / max(chains.seconds_per_iteration, 1e-9))))
+        chains.extend(target, step, _with_total(progress, done + chains.n, done + until))
 
 
 def run_until(target: mcmc.LogDensityFn, starts: np.ndarray, first: int, per_chain: int, evenly: bool,
@@ -154,23 +210,37 @@ def run_until(target: mcmc.LogDensityFn, starts: np.ndarray, first: int, per_cha
     ``chains``: ``mcmc.sample_chains``' keywords (``progress`` included). ``evenly`` picks the
     kept draws as the warm start does (``linspace`` over the window), else as integer thinning
     ending at the last iteration, so the first check reproduces the fixed-length run's draws
-    exactly.
+    exactly. With a time budget the first run too is checked against it (after its first
+    ``_FIRST_UNCUT`` iterations, then every sub-block); a budget spent before the chains hold
+    ``per_chain`` draws each leaves nothing to return.
+
+    Raises:
+        ValueError: naming ``num_samples`` when the time budget ran out before ``per_chain``
+            iterations per chain.
     """
     progress = chains.pop("progress")
-    result = mcmc.sample_chains(target, starts, first, thin=1, progress=progress, **chains)
-    states, accepted, evaluations = result.draws, result.acceptance_rate * first, result.num_evaluations
-    n, last, need = first, result, rule.required_ess(num_samples)
+    warmup = chains["warmup"]
+    head = first if rule.time_budget_s is None else min(first, _FIRST_UNCUT)
+    t0 = time.monotonic()
+    result = mcmc.sample_chains(target, starts, head, thin=1, progress=_with_total(progress, 0, warmup + first),
+                                **chains)
+    run = _Chains(result, head, time.monotonic() - t0)
+    need = rule.required_ess(num_samples)
     cap, block = max(rule.max_iterations, first), rule.check_every or max(first, _MIN_BLOCK)
+    check_at = first
     while True:
-        window, r_hat, ess = _window_diagnostics(states, n, first)
+        _advance(run, target, check_at, rule, started, progress, warmup)
+        n = run.n
+        if n < per_chain:
+            raise ValueError(f"num_samples: the time budget of {rule.time_budget_s:g} s ran out after {n} "
+                             f"iterations per chain, fewer than the {per_chain} that {num_samples} samples from "
+                             f"{starts.shape[0]} chains need: ask for fewer samples")
+        window, r_hat, ess = _window_diagnostics(run.states(), n, first)
         reason = _stop_reason(rule, r_hat, ess, need, n, cap, started)
         if reason:
             break
-        step = min(block, cap - n)
-        last = mcmc.continue_chains(target, last.continuation, step,
-                                    progress=_block_progress(progress, chains["warmup"] + n, step))
-        states = np.concatenate([states, last.draws], axis=1)
-        accepted, evaluations, n = accepted + last.acceptance_rate * step, evaluations + last.num_evaluations, n + step
+        check_at = n + min(block, cap - n)
     kept, thin = _kept_draws(window.shape[1], per_chain, evenly)
-    acceptance = float(result.acceptance_rate.mean()) if n == first else float((accepted / n).mean())
-    return SamplerRun(window[:, kept], r_hat, ess, acceptance, last, evaluations, thin, n, reason)
+    acceptance = float((run.accepted / n).mean())
+    last = run.head if n <= head else run.last  # the fixed-length run's own result when it was not extended
+    return SamplerRun(window[:, kept], r_hat, ess, acceptance, last, run.evaluations, thin, n, reason)

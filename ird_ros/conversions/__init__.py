@@ -3,7 +3,9 @@
 Import the package (``from ird_ros import conversions as conv``); ``conv.X`` is the one name of
 each conversion. Modules: ``grids`` (FeatureGrid, TerrainGrid, OccupancyGrid, Header), ``paths``
 (nav_msgs/Path <-> cells), ``posterior`` (RewardPosterior, flat weights), ``queries`` (the
-designer conversation: ProposeQuery options, QueryRecord). The cell geometry they build on is the
+designer conversation: ProposeQuery options, QueryRecord). Not exported here (import the module):
+``sizes`` (request sizes from declared lengths, before decoding) and ``inference_requests``
+(an ``/ird/infer`` request as its validated worker job). The cell geometry they build on is the
 ROS-free :mod:`ird_ros.geometry` (exported here too).
 
 Grid convention (docs/spec.md section 6): a map of H rows and W columns is a numpy array

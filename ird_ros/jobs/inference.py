@@ -14,7 +14,9 @@ are extended until the split R-hat is at most ``target_r_hat`` and the bulk ESS 
 ``max(min_ess, num_samples / 2)``, or a bound stops them, then thinned to ``num_samples``; so the
 number of samples asked for does not decide whether the chains mix. The iteration cap is the
 deterministic bound (a seeded request gives the same posterior on any machine); the time budget
-is a safety stop only. A set ``thin`` means fixed-length chains (``ceil(num_samples /
+is a safety stop only, checked in the first run as in the extension (``RunUntil``), so it holds
+for any ``num_samples``: spent before every chain has its ``ceil(num_samples / C)`` draws, the
+job fails with a ``ValueError`` naming ``num_samples``. A set ``thin`` means fixed-length chains (``ceil(num_samples /
 num_chains) * thin`` iterations).
 
 The proxy map (latent_classifier): with a proxy map, the proxy weights apply to its layers.

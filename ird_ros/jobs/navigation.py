@@ -31,7 +31,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ird_core import planning
-from ird_core.checks import check_real
+from ird_core.checks import MAX_TEXT_LENGTH, check_real
 from ird_core.vocabulary import Baseline, PlanMode, ZMethod, parse, values
 from ird_core.worlds.evaluation import evaluate_path
 from ird_ros.jobs.ground_truth import evaluation_terrain
@@ -145,6 +145,8 @@ def check_goal(*, method: object, beta: object, num_samples: object, seed: objec
     asked = _integer("queries", queries, 0, limits.max_queries, "max_queries")
     if not isinstance(label, str):
         raise ValueError(f"label: expected a string, got {label!r}")
+    if len(label) > MAX_TEXT_LENGTH:  # the planner's limit on a plan's label
+        raise ValueError(f"label: {len(label)} characters exceed {MAX_TEXT_LENGTH}")
     return CheckedGoal(
         method=z_method,
         beta=beta_value if beta_value > 0 else float(limits.default_beta),

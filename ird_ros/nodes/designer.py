@@ -24,7 +24,8 @@ Records stamped before the current ``/world/terrain`` belong to a forgotten worl
   :func:`risk_dict` here.
 
 The node never blocks an executor callback: simulated answers are ``call_async`` with a done
-callback.
+callback. Every callback runs in ``ird_ros.runtime.guard``'s guard: whatever a message raises is
+logged, never the end of the node.
 """
 
 from __future__ import annotations
@@ -35,7 +36,6 @@ from typing import Any
 
 import numpy as np
 from nav_msgs.msg import OccupancyGrid
-from rclpy.node import Node
 
 from ird_core.designer.queries import SimulatedDesigner
 from ird_core.vocabulary import QueryEvent, values
@@ -44,6 +44,7 @@ from ird_msgs.srv import AnswerQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import BUSY_PREFIX, service_qos
@@ -100,7 +101,7 @@ def risk_dict(costs: np.ndarray, stamp: float) -> dict[str, Any]:
     return {"height": h, "width": w, "values": costs.astype(int).tolist(), "stamp": stamp}
 
 
-class DesignerNode(Node):
+class DesignerNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_DESIGNER, **kwargs)
         p = declare_all(self, PARAMETERS)

@@ -4,10 +4,16 @@ Run: ``python -m ird_ros.nodes.inference --ros-args --params-file msgs_config/pa
 
 ``/ird/infer`` (InferReward) validates every field first and answers a bad request at once with
 ``success: false`` and a message that starts with the field's name (``training_map.data: ...``,
-``start_row: ...``, ``proxy_weights: ...``): the message fields are decoded by
-``ird_ros.conversions``, the arguments checked by the library (``GridMDP``,
-``planning.check_start``, ``inference.check_posterior_arguments``), and only the node's own
-resource limits (``max_horizon``, ``max_num_samples``, ``max_map_values``) are checked here.
+``start_row: ...``, ``proxy_weights: ...``), by
+:func:`ird_ros.conversions.inference_requests.infer_job`: sizes from the declared lengths before
+anything is decoded (``max_map_values``, ``max_training_worlds``, ``max_request_values``,
+``max_horizon``, ``max_num_samples``), the work model (``max_inference_work``,
+:mod:`ird_ros.jobs.work`) and one MDP pass's memory (``worker_memory_mb``), then the decoders of
+``ird_ros.conversions`` and the library's checks (``GridMDP``, ``planning.check_start``,
+``checks.check_posterior_arguments``). Every worker process is capped at ``worker_memory_mb``
+(``RLIMIT_AS``): a job past it fails naming ``worker_memory_mb``; a worker that dies fails only
+the request it was running. Every handler runs in ``ird_ros.runtime.guard``'s guard: nothing a
+request raises reaches the executor.
 A good request is sampled in a worker process by :func:`ird_ros.jobs.inference.run_inference`
 (the exact library call, convergence, proxy map and training worlds are documented in
 :mod:`ird_ros.jobs.inference`), and the result is returned and published on ``/ird/posterior``
@@ -30,7 +36,7 @@ above, empty ``proxy_weights`` = the request's. Bad fields fail naming ``trainin
 An empty list keeps the single-proxy posterior.
 
 Responsiveness: the service callback is a coroutine that awaits the worker process
-(``node_main.WorkerPool``); the executor keeps serving parameters and other requests meanwhile.
+(``ird_ros.runtime.workers.WorkerPool``); the executor keeps serving parameters and other requests meanwhile.
 Concurrency: requests are computed one at a time in arrival order (``max_workers`` = 1 by
 default); invalid requests never queue; more than ``max_pending`` valid requests waiting at once
 get ``success: false`` ("busy"); see ``ird_ros.runtime.offload``.
@@ -42,14 +48,18 @@ Questions to the designer (docs/spec.md section 7; the evidence's lifetime is do
   num_options, strategy, seed)`` from the current posterior's samples. Empty ``map`` = the latest
   test map whose layers are the posterior's feature names (``/world/test_features``, else
   ``/terrain/features``); ``horizon`` 0 = ``/world/proxy``'s test horizon; ``num_options`` 0 = 2;
-  ``strategy`` "" = ``info_gain``. Too few distinct candidate paths (every sample plans the same)
-  is ``success: false`` naming ``num_options``.
+  ``strategy`` "" = ``info_gain``. The map's size is checked from its declared lengths before it
+  is decoded (``max_map_values``), the query's work (``max_query_work``,
+  :func:`ird_ros.jobs.work.query_work`) and one sample's plan table (``worker_memory_mb``) before
+  it is queued. Too few distinct candidate paths (every sample plans the same) is
+  ``success: false`` naming ``num_options``.
 - ``/ird/answer`` (AnswerQuery) adds ``ChoiceObservation(option_features, chosen, beta)`` to the
   evidence and re-samples ``sample_joint_posterior([proxy] + answers, ..., seed=
   resample_seed(seed, n), initial=<current posterior>)`` (warm start), returns it and publishes it
   on ``/ird/posterior``. Unknown, forgotten or answered ``query_id``, out-of-range ``chosen`` and a
-  bad ``beta`` fail naming the field; an answer while another is being re-sampled is refused as
-  ``busy``; in every failure the evidence is unchanged.
+  bad ``beta`` (or an ``answered_by`` longer than ``sizes.MAX_TEXT``) fail naming the field; an
+  answer while another is being re-sampled is refused as ``busy``; in every failure the evidence
+  is unchanged.
 - Every proposal and every taken answer is published on ``/ird/queries`` (QueryRecord,
   ``names.history_qos()``: transient local, the last 100 events).
 """
@@ -62,20 +72,22 @@ from typing import Any
 
 import numpy as np
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.node import Node
 
-from ird_core import checks
 from ird_core import planning as core_planning
 from ird_core.checks import MAX_ABS_FEATURE, PRIOR_SIGMA_RANGE
 from ird_core.mdp import GridMDP
 from ird_core.posterior import Posterior
-from ird_core.vocabulary import QueryEvent, QueryStrategy, ZMethod, parse
+from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
 from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior
 from ird_msgs.srv import AnswerQuery, InferReward, ProposeQuery
 from ird_ros import conversions as conv
+from ird_ros.conversions.inference_requests import InferenceLimits, check_pass_memory, infer_job
+from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
 from ird_ros.graph import names
-from ird_ros.jobs.inference import ExtraWorld, InferenceJob, ResampleJob, run_inference, run_resample, sampler_settings
+from ird_ros.jobs.inference import InferenceJob, ResampleJob, run_inference, run_resample, sampler_settings
 from ird_ros.jobs.inference_queries import ProposalRecord, QueryJob, WorldEvidence, resample_seed, run_query
+from ird_ros.jobs.work import check_query_work
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import Arrivals, exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import BUSY_PREFIX, Offload, OffloadError, service_qos
@@ -113,10 +125,22 @@ PARAMETERS: dict[str, Param] = {
     "max_iterations": Param(2000, "With target_r_hat: cap on post-warm-up iterations per chain (the "
                                   "deterministic bound)", min_value=1, max_value=10**7),
     "time_budget": Param(60.0, "With target_r_hat: wall seconds of one request after which the chains are not "
-                               "extended further (a safety stop; 0 = none)", min_value=0.0),
+                               "extended further (a safety stop, checked in the first run too: spent before "
+                               "num_samples draws exist, the request fails naming num_samples; 0 = none)",
+                         min_value=0.0),
     "max_num_samples": Param(100000, "Largest num_samples a request may ask for", min_value=1),
     "max_horizon": Param(1000, "Largest horizon a request may ask for", min_value=1),
-    "max_map_values": Param(5_000_000, "Largest H*W*d of a training or proxy map", min_value=1),
+    "max_map_values": Param(5_000_000, "Largest H*W*d of a training, proxy or query map", min_value=1),
+    "max_training_worlds": Param(16, "Largest number of training_worlds of a request", min_value=0),
+    "max_request_values": Param(20_000_000, "Largest number of map values of an /ird/infer request, all its maps "
+                                            "(training_worlds included) together", min_value=1),
+    "max_inference_work": Param(2e11, "Largest work of an /ird/infer request: chains x (warm-up + first run) "
+                                      "iterations x leapfrog steps x gradient cost (ird_ros.jobs.work)",
+                                min_value=1.0),
+    "max_query_work": Param(5e9, "Largest work of an /ird/query request: K (T+1) H W + K H W d + K^3/2 + q^2 K^2 "
+                                 "for K posterior samples (ird_ros.jobs.work)", min_value=1.0),
+    "worker_memory_mb": Param(4096, "Address space of each inference worker process in MiB (0 = no limit); a "
+                                    "request past it fails naming worker_memory_mb", min_value=0, read_only=True),
     "max_workers": Param(1, "Worker processes: inferences computed at the same time (others queue)",
                          min_value=1, max_value=64, read_only=True),
     "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
@@ -149,20 +173,25 @@ def _publish_result(node: "InferenceNode", posterior: Posterior, layers: tuple[s
     return msg
 
 
-class InferenceNode(Node):
+class InferenceNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_INFERENCE, **kwargs)
         p = declare_all(self, PARAMETERS)
-        self.default_prior_sigma = p["default_prior_sigma"]
-        self.max_num_samples, self.max_horizon = p["max_num_samples"], p["max_horizon"]
-        self.max_map_values = p["max_map_values"]
+        self.max_horizon, self.max_map_values = p["max_horizon"], p["max_map_values"]
+        self.max_query_work, self.memory_limit = float(p["max_query_work"]), int(p["worker_memory_mb"]) * 2**20
         self.sampler = sampler_settings(p)
+        self.limits = InferenceLimits(
+            max_num_samples=p["max_num_samples"], max_horizon=p["max_horizon"], max_map_values=p["max_map_values"],
+            max_training_worlds=p["max_training_worlds"], max_request_values=p["max_request_values"],
+            max_inference_work=float(p["max_inference_work"]), memory_limit=self.memory_limit,
+            default_prior_sigma=float(p["default_prior_sigma"]), sampler=self.sampler)
         if p["worker_threads"] > 0:
             # Read by numpy's BLAS when the spawned worker imports it (the node's numpy is loaded).
             for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
                 os.environ[var] = str(p["worker_threads"])
         self._offload = Offload("inference", p["max_pending"], max_workers=p["max_workers"],
-                                warm_modules=("ird_core.posterior", "ird_core.mdp"), logger=self.get_logger())
+                                warm_modules=("ird_core.posterior", "ird_core.mdp"), memory_limit=self.memory_limit,
+                                logger=self.get_logger())
         self._pub = self.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
         self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
         self.evidence = WorldEvidence()
@@ -194,75 +223,9 @@ class InferenceNode(Node):
         """The worker job of a request and the training map's layer names.
 
         Raises:
-            ValueError: naming the request field (from the decoders and the library's checks).
+            ValueError: naming the request field (``inference_requests.infer_job``).
         """
-        train, proxy, start = self._world_maps("", req)
-        d = train.shape[2]
-        if req.horizon > self.max_horizon:
-            raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
-        if req.num_samples > self.max_num_samples:
-            raise ValueError(f"num_samples: {req.num_samples} exceeds max_num_samples={self.max_num_samples}")
-        prior_sigma = float(self.default_prior_sigma) if req.prior_sigma == 0.0 else float(req.prior_sigma)
-        weights = checks.check_posterior_arguments(
-            np.asarray(req.proxy_weights, dtype=np.float64), d if proxy is None else proxy.shape[2], req.beta,
-            req.method, int(req.num_samples), prior_sigma)
-        train_mdp = GridMDP(train.features.astype(np.float64), start, int(req.horizon))
-        job = InferenceJob(
-            train_mdp=train_mdp,
-            proxy_mdp=None if proxy is None else train_mdp.with_features(proxy.features.astype(np.float64)),
-            proxy_weights=weights,
-            beta=float(req.beta),
-            method=ZMethod(req.method),
-            num_samples=int(req.num_samples),
-            seed=int(req.seed),
-            prior_sigma=prior_sigma,
-            sampler=self.sampler,
-            extra_worlds=tuple(self._training_world(i, world, train.layers, weights)
-                               for i, world in enumerate(req.training_worlds)),
-        )
-        return job, train.layers
-
-    def _world_maps(self, prefix: str, msg: Any, layers: tuple[str, ...] | None = None
-                    ) -> tuple[conv.FeatureGridData, conv.FeatureGridData | None, tuple[int, int]]:
-        """A world's decoded training map, proxy map (or None) and start, for the request itself
-        (``prefix`` "") and each ``training_worlds[i].``; errors name ``<prefix><field>``."""
-        train = conv.feature_grid_from_msg(msg.training_map, field=f"{prefix}training_map", max_abs=MAX_ABS_FEATURE)
-        h, w, d = train.shape
-        if layers is not None and train.layers != layers:
-            raise ValueError(f"{prefix}training_map.layers: {list(train.layers)} must be the request's training_map "
-                             f"layers {list(layers)}")
-        if h * w * d > self.max_map_values:
-            raise ValueError(f"{prefix}training_map.data: {h * w * d} values exceed "
-                             f"max_map_values={self.max_map_values}")
-        proxy = None
-        if len(msg.proxy_map.layers) or len(msg.proxy_map.data):
-            proxy = conv.feature_grid_from_msg(msg.proxy_map, field=f"{prefix}proxy_map", max_abs=MAX_ABS_FEATURE)
-            if proxy.shape[:2] != (h, w):
-                raise ValueError(f"{prefix}proxy_map.info: a {proxy.shape[0]}x{proxy.shape[1]} map does not match "
-                                 f"the {h}x{w} {prefix}training_map")
-            if proxy.features.size > self.max_map_values:
-                raise ValueError(f"{prefix}proxy_map.data: {proxy.features.size} values exceed max_map_values")
-        try:
-            start = core_planning.check_start((msg.start_row, msg.start_col), h, w)
-        except ValueError as exc:
-            raise ValueError(f"{prefix}{exc}") from None
-        return train, proxy, start
-
-    def _training_world(self, i: int, msg: Any, layers: tuple[str, ...], default_weights: np.ndarray) -> ExtraWorld:
-        """``training_worlds[i]`` validated (ValueError naming ``training_worlds[i].<field>``)."""
-        key = f"training_worlds[{i}]"
-        train, proxy, start = self._world_maps(key + ".", msg, layers)
-        d = train.shape[2]
-        if not 0 < msg.horizon <= self.max_horizon:
-            raise ValueError(f"{key}.horizon: must be in [1, max_horizon={self.max_horizon}], got {msg.horizon}")
-        weights = np.asarray(msg.proxy_weights, dtype=np.float64) if len(msg.proxy_weights) else default_weights
-        expected = d if proxy is None else proxy.shape[2]
-        if weights.shape != (expected,) or not np.all(np.isfinite(weights)):
-            raise ValueError(f"{key}.proxy_weights: expected {expected} finite values (one per "
-                             f"{'training_map' if proxy is None else 'proxy_map'} layer), got {weights.tolist()}")
-        train_mdp = GridMDP(train.features.astype(np.float64), start, int(msg.horizon))
-        proxy_mdp = None if proxy is None else train_mdp.with_features(proxy.features.astype(np.float64))
-        return ExtraWorld(train_mdp, proxy_mdp, weights)
+        return infer_job(req, self.limits)
 
     # ------------------------------------------------------------------ service
 
@@ -308,7 +271,8 @@ class InferenceNode(Node):
 
     def _query_map(self, req: ProposeQuery.Request) -> conv.FeatureGridData:
         names_ = self.evidence.feature_names
-        if len(req.map.layers) or len(req.map.data):
+        if not grid_is_empty(req.map):
+            check_grid_size(req.map, "map", self.max_map_values)  # before decoding it
             grid = conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
             if grid.layers != names_:
                 raise ValueError(f"map.layers: {list(grid.layers)} must be the posterior's features {list(names_)}")
@@ -338,9 +302,11 @@ class InferenceNode(Node):
         if not 2 <= num_options <= self.max_options:
             raise ValueError(f"num_options: must be in [2, max_options={self.max_options}], got {num_options}")
         strategy = parse(QueryStrategy, req.strategy or QueryStrategy.INFO_GAIN, "strategy")
+        samples = self.evidence.posterior.samples
+        check_query_work(len(samples), h, w, horizon, d, num_options, self.max_query_work)
+        check_pass_memory("map", h, w, horizon, 8, self.memory_limit)  # one sample's plan table (float64)
         mdp = GridMDP(grid.features.astype(np.float64), start, horizon)
-        return QueryJob(mdp, self.evidence.posterior.samples, self.answer_beta, num_options, strategy,
-                        int(req.seed)), grid
+        return QueryJob(mdp, samples, self.answer_beta, num_options, strategy, int(req.seed)), grid
 
     async def _on_query(self, req: ProposeQuery.Request, response: ProposeQuery.Response) -> ProposeQuery.Response:
         ev = self.evidence
@@ -388,6 +354,7 @@ class InferenceNode(Node):
     async def _on_answer(self, req: AnswerQuery.Request, response: AnswerQuery.Response) -> AnswerQuery.Response:
         ev = self.evidence
         try:
+            check_text(req.answered_by, "answered_by")
             open_query, beta = ev.check_answer(int(req.query_id), int(req.chosen), float(req.beta), self.answer_beta)
             if ev.resampling:
                 raise ValueError(f"{BUSY_PREFIX}: re-sampling the posterior with another answer; answer again "

@@ -29,9 +29,12 @@ Choices (docs/spec.md section 6):
   (no pre-emption); the client reports it as rejected because a goal is active.
 - A goal with a bad field (:func:`ird_ros.jobs.navigation.check_goal`: ``method`` not a ZMethod
   nor "", ``beta`` / ``num_samples`` out of range, ``mode`` / ``baseline`` unknown, ``risk_measure``
-  other than ``min``, ``queries`` < 0 or > ``max_queries``) is accepted and finished at once, before
-  any work, with result status ``rejected`` and the field in ``field`` (protocol status ABORTED:
-  the protocol's rejection carries no reason).
+  other than ``min``, ``queries`` < 0 or > ``max_queries``, ``label`` longer than
+  ``ird_core.checks.MAX_TEXT_LENGTH``) is accepted and finished at once, before any work, with
+  result status ``rejected`` and the field in ``field`` (protocol status ABORTED: the protocol's
+  rejection carries no reason). The action server's callbacks run in
+  ``ird_ros.runtime.guard``'s guard: an unexpected exception rejects the goal (or the cancel) or
+  aborts it, and the node keeps serving.
 - Cancel: the goal stops waiting; while Rob drives (or once a plan asked for before the cancel is
   out and Rob reported its first cell), ``/rob/stop`` stops him where he is (his last status says
   ``stopped``) and the result is ``canceled`` with the cells driven so far (none before driving).
@@ -48,9 +51,8 @@ import math
 from collections import deque
 from typing import Any
 
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.node import Node
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -69,6 +71,7 @@ from ird_ros.jobs.navigation import (
     judge,
     posterior_summary,
 )
+from ird_ros.runtime.guard import MAX_MESSAGE, GuardedNode, guarded_action_server
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import service_qos
@@ -99,11 +102,13 @@ class _Stop(Exception):
     """Ends a goal early: the result status and message (and the field of a rejection)."""
 
     def __init__(self, status: NavigationStatus, message: str, field: str = "") -> None:
+        if len(message) > MAX_MESSAGE:  # a goal may echo a huge field back
+            message = f"{message[:MAX_MESSAGE]}... ({len(message)} characters)"
         super().__init__(message)
-        self.status, self.message, self.field = status, message, field
+        self.status, self.message, self.field = status, message, field[:MAX_MESSAGE]
 
 
-class NavigatorNode(Node):
+class NavigatorNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_NAVIGATOR, **kwargs)
         p = declare_all(self, PARAMETERS)
@@ -136,9 +141,9 @@ class NavigatorNode(Node):
         self._service_clients = {service: self.create_client(srv, service, qos_profile=service_qos(), callback_group=group)
                          for service, srv in ((names.SRV_INFER, InferReward), (names.SRV_QUERY, ProposeQuery),
                                               (names.SRV_PLAN, PlanPath), (names.SRV_ROB_STOP, Trigger))}
-        self._server = ActionServer(self, NavigateIrd, names.ACTION_NAVIGATE, execute_callback=self._execute,
-                                    goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                                    callback_group=group)
+        self._server = guarded_action_server(self, NavigateIrd, names.ACTION_NAVIGATE, execute_callback=self._execute,
+                                             goal_callback=self._on_goal, cancel_callback=self._on_cancel,
+                                             callback_group=group)
 
     def destroy_node(self) -> None:
         self._server.destroy()

@@ -42,7 +42,9 @@ model and the observations, by seed). Before using it, perception checks that th
 instance's test observations equal the received ones (float32 tolerance): if the world was made
 with settings perception cannot reproduce, it logs an error and publishes nothing rather than
 classify with the wrong model. (Fitting on data instead would need labelled observations, which
-the graph does not carry: the training map's labels are the designer's secret.)
+the graph does not carry: the training map's labels are the designer's secret.) Every callback
+runs in ``ird_ros.runtime.guard``'s guard: whatever a message raises is logged, never the end of
+the node.
 """
 
 from __future__ import annotations
@@ -51,7 +53,6 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from rclpy.node import Node
 
 from ird_core.vocabulary import Condition
 from ird_core.worlds import lavaland, world_file
@@ -60,6 +61,7 @@ from ird_core.worlds.terrain import SAFE_TERRAINS, TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.graph import names
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.stamps import stamp_key
@@ -98,7 +100,7 @@ def classify_sensors(features: np.ndarray, num_sensors: int = 2) -> tuple[np.nda
     return classes, probs, (~agree).astype(np.float32)
 
 
-class PerceptionNode(Node):
+class PerceptionNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PERCEPTION, **kwargs)
         p = declare_all(self, PARAMETERS)

@@ -23,10 +23,15 @@ Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
   proxy's own weights).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
-the field's name): the map is decoded by ``ird_ros.conversions``, the arguments are checked by
-``ird_core.planning.check_plan_arguments``, ``check_start`` and ``GridMDP``; the node itself
-checks only its limits (``max_horizon``, ``max_map_values``; ``max_plan_work`` through
-``planning.check_plan_size``, before any work starts) and which received inputs fit together. The
+the field's name): sizes first, from the declared lengths before anything is decoded (the map's
+``len(data)`` and ``H x W x len(layers)`` against ``max_map_values``, the explicit weights'
+``len(weights) / d`` samples against ``max_plan_work`` through ``planning.check_plan_size``,
+``reference_features`` against ``d``, ``label`` against ``sizes.MAX_TEXT`` characters); then the
+map is decoded by ``ird_ros.conversions``, the arguments are checked by
+``ird_core.planning.check_plan_arguments``, ``check_start`` and ``GridMDP``; the node itself checks
+its limits (``max_horizon``; ``max_plan_work`` for defaulted weights) and which received inputs
+fit together. Every handler runs in ``ird_ros.runtime.guard``'s guard (an unexpected exception
+is a ``success: false`` answer, never the end of the node). The
 plan (docs/spec.md section 4) is :func:`ird_ros.jobs.planning.run_plan`, computed in a worker process: trajectory plans
 in one of their own, so a long one never delays a ``literal`` or ``per_step`` plan. A
 trajectory plan that reaches ``time_limit`` is answered with the best path found, marked in the
@@ -54,7 +59,6 @@ from typing import Any
 import numpy as np
 from nav_msgs.msg import OccupancyGrid, Path
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.node import Node
 
 from ird_core import planning
 from ird_core.checks import MAX_ABS_FEATURE
@@ -64,7 +68,9 @@ from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
 from ird_ros.graph import names
+from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
 from ird_ros.jobs.planning import PlanJob, ReferenceJob, run_plan
+from ird_ros.runtime.guard import GuardedNode, guard_callback
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import Offload, OffloadError, service_qos
@@ -117,7 +123,7 @@ def _reshape_weights(flat: np.ndarray, grid: conv.FeatureGridData) -> np.ndarray
     return flat.reshape(-1, d)
 
 
-class PlannerNode(Node):
+class PlannerNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PLANNER, **kwargs)
         p = declare_all(self, PARAMETERS)
@@ -181,7 +187,7 @@ class PlannerNode(Node):
         self._stamps[names.TOPIC_POSTERIOR] = stamp_text(msg.header.stamp)
         self._update_risk_map()
         if self.replan_on_posterior:
-            self.executor.create_task(self._replan())
+            self.executor.create_task(guard_callback(self._replan, self.get_logger(), "replan_on_posterior")())
 
     def matching_map(self, layers: tuple[str, ...]) -> tuple[str, conv.FeatureGridData] | None:
         """The latest perceived test map whose layers are ``layers`` (test features first)."""
@@ -223,10 +229,13 @@ class PlannerNode(Node):
         mode, baseline = PlanMode(req.mode), Baseline(req.baseline)
         if req.horizon > self.max_horizon:
             raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
+        check_text(req.label, "label")
         sources: list[str] = []
         weights, feature_names, grid = self._weights_and_map(req, mode is PlanMode.LITERAL, sources)
         h, w, d = grid.shape
         planning.check_plan_size(len(weights), int(req.horizon), h, w, self.max_plan_work)
+        if len(req.reference_features) not in (0, d):  # before converting it
+            raise ValueError(f"reference_features: expected shape ({d},), got ({len(req.reference_features)},)")
         start = planning.check_start((req.start_row, req.start_col), h, w)
         mdp = GridMDP(grid.features.astype(np.float64), start, int(req.horizon))
         ref_flat = _flat(req.reference_features)
@@ -247,10 +256,13 @@ class PlannerNode(Node):
         """The plan's weights ``(K, d)``, their feature names and the map, each from the request
         or defaulted (see the module doc); ``sources`` gets the ``name=topic@stamp`` of defaults."""
         grid = self._request_map(req)
-        flat = _flat(req.weights)
-        if flat.size:
-            grid = grid if grid is not None else self._map_fitting(flat.size, literal, sources)
-            return _reshape_weights(flat, grid), grid.layers, grid
+        count = len(req.weights)
+        if count:
+            grid = grid if grid is not None else self._map_fitting(count, literal, sources)
+            h, w, d = grid.shape
+            if count % d == 0:  # the samples' work from the declared length, before converting them
+                planning.check_plan_size(count // d, int(req.horizon), h, w, self.max_plan_work)
+            return _reshape_weights(_flat(req.weights), grid), grid.layers, grid
         weights, feature_names = self._latched_weights(literal, sources)
         if grid is None:
             return weights, feature_names, self._map_with_layers(feature_names, sources)
@@ -261,10 +273,9 @@ class PlannerNode(Node):
 
     def _request_map(self, req: PlanPath.Request) -> conv.FeatureGridData | None:
         """The request's own map, or ``None`` when it left ``map`` empty."""
-        if not (len(req.map.layers) or len(req.map.data)):
+        if grid_is_empty(req.map):
             return None
-        if len(req.map.data) > self.max_map_values:
-            raise ValueError(f"map.data: {len(req.map.data)} values exceed max_map_values={self.max_map_values}")
+        check_grid_size(req.map, "map", self.max_map_values)  # before decoding it
         return conv.feature_grid_from_msg(req.map, field="map", max_abs=MAX_ABS_FEATURE)
 
     def _latched_weights(self, literal: bool, sources: list[str]) -> tuple[np.ndarray, tuple[str, ...]]:

@@ -13,6 +13,8 @@ first cell (``step`` 0). The logic lives in :mod:`ird_ros.jobs.rob_logic`.
 ``/rob/stop`` (std_srvs/Trigger) stops the current plan where Rob is (the navigator's cancel):
 Rob publishes his current cell once more with ``stopped: true`` and ``done: true`` and idles until
 the next plan; the answer says where he stopped, or that he was idle (``success`` is true both ways).
+Every callback runs in ``ird_ros.runtime.guard``'s guard: a malformed message is logged and dropped,
+and an unexpected exception in ``/rob/stop`` is a ``success: false`` answer.
 
 Because ``/plan`` is latched, a Rob started after the planner executes the current plan.
 ``plan_label`` comes from the ``/ird/plan_info`` whose stamp equals the plan's (the planner
@@ -26,13 +28,13 @@ from collections import OrderedDict
 from typing import Any
 
 from nav_msgs.msg import Odometry, Path
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from ird_msgs.msg import PlanInfo, ProxyReward, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.jobs.rob_logic import RobExecutor, RobStatusData
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.stamps import stamp_key
@@ -45,7 +47,7 @@ PARAMETERS: dict[str, Param] = {
 }
 
 
-class RobNode(Node):
+class RobNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_ROB, **kwargs)
         p = declare_all(self, PARAMETERS)

@@ -41,7 +41,8 @@ to the world now published. An unknown condition gets ``success: false`` naming 
 With a world file loaded, a Lavaland condition (or empty: the ``condition`` parameter) replaces
 the file world by a generated one; condition ``file`` republishes the loaded file world (seed
 ignored, the ``condition`` / ``seed`` parameters unchanged; ``success: false`` naming
-``condition`` when no world file is set).
+``condition`` when no world file is set). The handler runs in ``ird_ros.runtime.guard``'s guard:
+any other exception is a ``success: false`` answer, and the node keeps serving.
 """
 
 from __future__ import annotations
@@ -51,7 +52,6 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
-from rclpy.node import Node
 
 from ird_core.vocabulary import Condition, parse
 from ird_core.worlds import lavaland, world_file
@@ -60,6 +60,7 @@ from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid, TrainingWorld
 from ird_msgs.srv import GenerateWorld, InferReward
 from ird_ros import conversions as conv
 from ird_ros.graph import names
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import service_qos
@@ -117,7 +118,7 @@ def with_world_file(specs: Sequence[Any], path: str | Path) -> list[Any]:
             if s.name in (names.NODE_WORLD, names.NODE_PERCEPTION) else s for s in specs]
 
 
-class WorldNode(Node):
+class WorldNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_WORLD, **kwargs)
         p = declare_all(self, PARAMETERS)

@@ -1,2 +1,3 @@
 """What every node process runs on: start-up and clean shutdown (``node_main``), parameter
-tables (``node_params``), and the worker pool behind the services (``offload``)."""
+tables (``node_params``), the guard around every callback (``guard``), and the worker processes
+behind the services (``workers``: one job per worker, ``offload``: busy and failure answers)."""

@@ -11,9 +11,10 @@ executor; on SIGINT/SIGTERM it shuts the executor down before destroying the nod
 ``destroy_node`` ends its worker processes) and exits 0. A node that cannot start (bad
 parameter) logs ``cannot start: ...`` and exits 2.
 
-``WorkerPool`` runs picklable functions in worker processes and hands the result to an
-``async`` rclpy callback as an awaitable rclpy Future, so a long computation (MCMC, MILP) never
-blocks the executor: parameter services and other callbacks keep being served while it runs.
+``WorkerPool`` (:mod:`ird_ros.runtime.workers`, re-exported here) runs picklable functions in
+worker processes and hands the result to an ``async`` rclpy callback as an awaitable rclpy Future,
+so a long computation (MCMC, MILP) never blocks the executor: parameter services and other
+callbacks keep being served while it runs.
 Processes rather than threads because the MCMC holds the GIL in Python loops. Mechanics: the
 service callback is a coroutine; ``await pool.submit(fn, ...)`` suspends it; the pool's
 completion callback (a pool thread) sets the rclpy Future's result and wakes the executor
@@ -26,17 +27,14 @@ default (mutually exclusive) group would block the parameter services and every 
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import faulthandler
-import multiprocessing
 import os
 import signal
 import sys
-from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
 
-from ird_ros.launch.process_groups import set_parent_death_signal
+from ird_ros.runtime.workers import BrokenProcessPool, WorkerPool
 
 __all__ = ["StartupError", "run_node", "declare", "WorkerPool", "BrokenProcessPool"]
 
@@ -148,120 +146,7 @@ def exit_process(code: int) -> None:
 
 
 # --------------------------------------------------------------------------- worker processes
-
-
-def _worker_init(memory_limit: int = 0) -> None:  # pragma: no cover - runs in the worker process
-    # Ctrl-C in a terminal signals the whole process group: the node ends its workers itself.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if memory_limit > 0:
-        # An allocation past the limit raises MemoryError in the job (answered as a failure);
-        # the node and the other workers keep their memory.
-        import resource
-
-        resource.setrlimit(resource.RLIMIT_AS, (memory_limit, memory_limit))
-    # Die with the node, even if it is SIGKILLed (Linux PR_SET_PDEATHSIG).
-    set_parent_death_signal(signal.SIGTERM)
-
-
-def _warm(modules: Sequence[str]) -> int:  # pragma: no cover - runs in the worker process
-    import importlib
-
-    for name in modules:
-        hook = getattr(importlib.import_module(name), "warm_up", None)
-        if callable(hook):  # e.g. ird_core.mdp.warm_up: load the compiled passes now
-            hook()
-    return 0
-
-
-class WorkerPool:
-    """A ``ProcessPoolExecutor`` (spawn start method) whose results rclpy coroutines can await.
-
-    ``max_workers`` computations run at once; further submissions queue in FIFO order.
-    ``warm_modules`` are imported in every worker at start-up (the constructor waits for it), and
-    their ``warm_up()`` called if they have one, so the first request does not pay for the
-    process start, the imports or loading the compiled MDP passes (``ird_core.mdp.warm_up``).
-    A worker that dies (``BrokenProcessPool``) is replaced on the next submit. ``memory_limit``
-    (bytes, 0 = none) caps each worker's address space (``RLIMIT_AS``): a job that would exceed
-    it gets ``MemoryError``.
-    """
-
-    def __init__(self, max_workers: int = 1, warm_modules: Sequence[str] = (), memory_limit: int = 0) -> None:
-        if max_workers < 1:
-            raise ValueError(f"max_workers must be >= 1, got {max_workers}")
-        self._memory_limit = int(memory_limit)
-        self._max_workers = int(max_workers)
-        self._warm_modules = tuple(warm_modules)
-        self._pool: concurrent.futures.ProcessPoolExecutor | None = None
-        self._start()
-
-    def _start(self) -> None:
-        # spawn, not fork: the node process runs DDS threads that must not be forked.
-        self._pool = concurrent.futures.ProcessPoolExecutor(
-            max_workers=self._max_workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_worker_init,
-            initargs=(self._memory_limit,),
-        )
-        if self._warm_modules:
-            # Start every worker now and wait until it has imported the modules, so the node is
-            # ready (and the first request fast) once the constructor returns.
-            warming = [self._pool.submit(_warm, self._warm_modules) for _ in range(self._max_workers)]
-            for future in warming:
-                future.result(timeout=120.0)
-
-    def submit_concurrent(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> concurrent.futures.Future:
-        """Submit and return the ``concurrent.futures.Future`` (blocking callers, tests)."""
-        if self._pool is None:
-            raise RuntimeError("WorkerPool is shut down")
-        try:
-            return self._pool.submit(fn, *args, **kwargs)
-        except BrokenProcessPool:
-            self._kill()
-            self._start()
-            return self._pool.submit(fn, *args, **kwargs)
-
-    def submit(self, executor: Any, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Submit ``fn(*args, **kwargs)``; return an awaitable ``rclpy.task.Future``.
-
-        ``executor`` is the rclpy executor that runs the awaiting coroutine (``node.executor``);
-        it is woken when the result is in. The Future's result is the function's return value,
-        or it raises the function's exception (``BrokenProcessPool`` if the worker died).
-        """
-        from rclpy.task import Future
-
-        result = Future(executor=executor)
-        cfut = self.submit_concurrent(fn, *args, **kwargs)
-
-        def done(cf: concurrent.futures.Future) -> None:  # runs in a pool thread
-            try:
-                value = cf.result()
-            except BaseException as exc:  # noqa: BLE001 - handed to the awaiting coroutine
-                result.set_exception(exc)
-            else:
-                result.set_result(value)
-            if executor is not None:
-                executor.wake()
-
-        cfut.add_done_callback(done)
-        return result
-
-    def _kill(self) -> None:
-        pool, self._pool = self._pool, None
-        if pool is None:
-            return
-        # Python 3.11 has no public way to stop a running task: terminate the workers.
-        processes = list((getattr(pool, "_processes", None) or {}).values())
-        for proc in processes:
-            with contextlib.suppress(Exception):
-                proc.terminate()
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in processes:
-            with contextlib.suppress(Exception):
-                proc.join(2.0)
-
-    def shutdown(self) -> None:
-        """Cancel queued work, terminate running workers, return at once."""
-        self._kill()
+# WorkerPool lives in ird_ros.runtime.workers (one job per worker at a time); re-exported here.
 
 
 class Arrivals:

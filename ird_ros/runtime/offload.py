@@ -7,11 +7,15 @@ message is the service's ``message`` (with ``success: false``):
 - :data:`BUSY_PREFIX` ``...`` when ``max_pending`` valid requests are already waiting or running (refused at
   once, the job never queues; the message gives the queue position it would have had);
 - the library's own ``ValueError`` message as it is (it starts with the argument's name);
-- ``internal error: the worker process died (...)`` (the pool starts a new worker next time);
+- ``worker_memory_mb: <what> needed more than the worker's N MiB (MemoryError)`` when the job
+  ran out of the worker's capped address space (``memory_limit``; the worker lives on);
+- ``internal error: the worker process died (...)`` for the job whose worker died; it alone
+  fails: the pool replaces the worker and the queued jobs run on the new one;
 - ``<what> failed: <ExceptionType>: ...`` for any other exception of the job (for the planner,
   e.g. ``PlanningTimeout``), so the node keeps serving.
 
-Jobs run one after another in arrival order per worker (``WorkerPool`` is FIFO).
+Jobs start in arrival order, one per worker at a time (``ird_ros.runtime.workers.WorkerPool``);
+a request that has to wait is logged with its queue position and the busy workers' pids.
 
 :func:`service_qos` is the QoS of every IRD service (requests and responses). rclpy's default
 (``qos_profile_services_default``) keeps the last 10 requests in the server's request reader
@@ -25,7 +29,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Sequence, TypeVar
 
-from ird_ros.runtime.node_main import BrokenProcessPool, WorkerPool
+from ird_ros.runtime.workers import BrokenProcessPool, WorkerPool
 
 __all__ = ["BUSY_PREFIX", "Offload", "OffloadError", "SERVICE_QUEUE_DEPTH", "service_qos"]
 
@@ -60,8 +64,9 @@ class Offload:
     Args:
         what: names the computation in failure messages (``"inference"``, ``"planning"``).
         max_pending: valid requests allowed to wait or run at once.
-        max_workers, warm_modules, memory_limit: as ``WorkerPool``.
-        logger: an rclpy logger; failures other than bad arguments and busy are logged as errors.
+        max_workers, warm_modules, memory_limit: as ``WorkerPool`` (``memory_limit`` in bytes).
+        logger: an rclpy logger; failures other than bad arguments and busy are logged as errors,
+            a request that waits for a worker at info.
         pool: a pool to use instead of starting one (tests).
     """
 
@@ -73,8 +78,14 @@ class Offload:
         self.max_pending = int(max_pending)
         self.pending = 0
         self._logger = logger
+        self.memory_limit = int(memory_limit)
         self._pool = pool if pool is not None else WorkerPool(max_workers, warm_modules=warm_modules,
-                                                              memory_limit=memory_limit)
+                                                              memory_limit=memory_limit, on_queued=self._queued)
+
+    def _queued(self, position: int, busy_pids: list[int]) -> None:
+        if self._logger is not None:
+            self._logger.info(f"{self.what}: a request waits at queue position {position} "
+                              f"(busy worker pids {busy_pids})")
 
     async def run(self, executor: Any, fn: Callable[[J], R], job: J) -> R:
         """``fn(job)`` in a worker process; raises :class:`OffloadError` (see the module doc)."""
@@ -88,6 +99,9 @@ class Offload:
             raise OffloadError(str(exc)) from None
         except BrokenProcessPool as exc:
             raise self._error(f"internal error: the worker process died ({exc})") from None
+        except MemoryError as exc:
+            limit = f"the worker's {self.memory_limit // 2**20} MiB" if self.memory_limit else "the memory"
+            raise self._error(f"worker_memory_mb: {self.what} needed more than {limit} (MemoryError: {exc})") from None
         except Exception as exc:  # noqa: BLE001 - any failure of the job is an answer, not a crash
             raise self._error(f"{self.what} failed: {type(exc).__name__}: {exc}") from None
         finally:

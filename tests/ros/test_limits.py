@@ -1,6 +1,7 @@
 """The planner's limits over real DDS (docs/spec.md section 8): sizes refused before work starts with
 the field and the limit named, out-of-range numbers named, a trajectory plan bounded by
-``time_limit`` and answered as a fallback, and a short plan never waiting behind a long one."""
+``time_limit`` and answered as a fallback, and a short plan never waiting behind a long one; and
+the worker memory cap (``RLIMIT_AS``) of the planning and the inference workers."""
 
 from __future__ import annotations
 
@@ -140,3 +141,28 @@ def test_map_size_is_refused_by_name(client: Any, planner: NodeProcess) -> None:
     response = _call(client, planner, req)
     assert response.status is CallStatus.REFUSED and response.field == "map.data", response
     assert response.message == "map.data: 6000000 values exceed max_map_values=5000000"
+
+
+def test_inference_workers_are_memory_capped(ros_domain: DomainLease, ros_ctx: Any) -> None:
+    """A request within every up-front limit whose MDP tables do not fit in the worker's capped
+    address space fails naming worker_memory_mb; the worker and the node serve on."""
+    from ird_ros.client import infer_request
+
+    args = ["-m", "ird_ros.nodes.inference", "--ros-args", "--params-file", PARAMS, "-p", "worker_memory_mb:=1024",
+            "-p", "num_chains:=4", "-p", "warmup:=20", "-p", "thin:=1"]
+    small = lavaland.make_instance("side_effects", 3, size=5, horizon=6)
+    valid = infer_request(conv.feature_grid_to_msg(small.train_features, small.feature_names), small.train_start, 6,
+                          small.proxy_weights, beta=1.0, method="maxent_z", num_samples=8, seed=0)
+    # One weight's pass keeps two 1001 x 191 x 191 float64 tables (584 MiB, under the cap by
+    # itself): with the worker's own ~520 MiB it does not fit in 1024 MiB.
+    big = infer_request(conv.feature_grid_to_msg(np.ones((190, 190, 1)), ("a",)), (0, 0), 1000, [1.0], beta=1.0,
+                        method="maxent_z", num_samples=1, seed=0)
+    with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as node, \
+            IrdClient(context=ros_ctx, node_name="limits_inference_client", processes=[node]) as ird:
+        ird.wait_ready(30.0, services=(names.SRV_INFER,))
+        refused = ird.infer(big, timeout=120.0)
+        assert not refused.ok and refused.message.startswith(
+            "worker_memory_mb: inference needed more than the worker's 1024 MiB (MemoryError"), refused.message
+        assert ird.infer(valid, timeout=120.0).ok
+        assert node.alive()
+    assert node.returncode == 0, node.describe()

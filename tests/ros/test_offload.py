@@ -1,7 +1,9 @@
 """ird_ros.runtime.offload: the one mapping of a worker job's outcome to a service answer.
 
 With a controllable stand-in pool (busy accounting, every failure kind) and with a real
-``WorkerPool`` driven by an rclpy executor (library errors, a dying worker and its replacement).
+``WorkerPool`` driven by an rclpy executor (library errors, a dying worker and its replacement);
+a worker killed while it runs a job fails that job only: the queued jobs run on its replacement
+and the other workers' jobs go on.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ import asyncio
 import math
 import operator
 import os
+import signal
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterator
 
@@ -171,3 +174,94 @@ def test_warm_modules_warm_up_hook_loads_the_compiled_passes_before_any_request(
     finally:
         warm.shutdown()
         cold.shutdown()
+
+
+# --------------------------------------------------------------------------- a worker's death
+
+
+def _hold(pid_fifo: str, go_fifo: str = "") -> int:
+    """A job that tells the test its worker's pid (a FIFO: the test's read blocks until the job
+    runs), then waits until the test says go (or is killed); returns its pid."""
+    with open(pid_fifo, "w") as out:
+        out.write(f"{os.getpid()}\n")
+    if go_fifo:
+        with open(go_fifo) as go:
+            go.read()
+    else:
+        signal.pause()  # until the test kills this worker
+    return os.getpid()
+
+
+def _fifo(tmp_path: Any, name: str) -> str:
+    path = str(tmp_path / name)
+    os.mkfifo(path)
+    return path
+
+
+def _running_pid(pid_fifo: str) -> int:
+    with open(pid_fifo) as handle:  # blocks until the job runs in its worker
+        return int(handle.readline())
+
+
+def test_a_dying_worker_fails_only_its_own_job(tmp_path: Any) -> None:
+    from ird_ros.runtime.node_main import WorkerPool
+
+    queued: list[tuple[int, list[int]]] = []
+    pool = WorkerPool(1, warm_modules=("numpy",), on_queued=lambda position, pids: queued.append((position, pids)))
+    try:
+        fifo = _fifo(tmp_path, "a")
+        victim = pool.submit_concurrent(_hold, fifo)
+        pid = _running_pid(fifo)
+        assert pool.worker_pids() == [pid]
+        innocent = pool.submit_concurrent(abs, -7)  # another client's job, queued behind the victim
+        assert queued == [(1, [pid])] and pool.queued() == 1
+        os.kill(pid, signal.SIGKILL)
+        assert innocent.result(timeout=120) == 7  # run by the fresh worker
+        with pytest.raises(BrokenProcessPool):
+            victim.result(timeout=120)
+        assert pid not in pool.worker_pids() and len(pool.worker_pids()) == 1
+        assert pool.submit_concurrent(abs, -8).result(timeout=60) == 8
+    finally:
+        pool.shutdown()
+
+
+def test_a_dying_worker_spares_the_other_workers_jobs(tmp_path: Any) -> None:
+    from ird_ros.runtime.node_main import WorkerPool
+
+    pool = WorkerPool(2)
+    try:
+        first, second, go = _fifo(tmp_path, "first"), _fifo(tmp_path, "second"), _fifo(tmp_path, "go")
+        victim = pool.submit_concurrent(_hold, first)
+        victim_pid = _running_pid(first)
+        neighbour = pool.submit_concurrent(_hold, second, go)
+        neighbour_pid = _running_pid(second)
+        queued = [pool.submit_concurrent(abs, -i) for i in range(1, 4)]
+        assert pool.queued() == 3
+        os.kill(victim_pid, signal.SIGKILL)
+        with pytest.raises(BrokenProcessPool):
+            victim.result(timeout=120)
+        assert [job.result(timeout=120) for job in queued] == [1, 2, 3]
+        with open(go, "w") as release:
+            release.write("go")
+        assert neighbour.result(timeout=120) == neighbour_pid  # the other worker's job lived on
+    finally:
+        pool.shutdown()
+
+
+def test_shutdown_cancels_the_queue_and_ends_the_running_job(tmp_path: Any) -> None:
+    from concurrent.futures import CancelledError
+
+    from ird_ros.runtime.node_main import WorkerPool
+
+    pool = WorkerPool(1)
+    fifo = _fifo(tmp_path, "held")
+    running = pool.submit_concurrent(_hold, fifo)
+    _running_pid(fifo)
+    waiting = pool.submit_concurrent(abs, -1)
+    pool.shutdown()
+    with pytest.raises(CancelledError):
+        waiting.result(timeout=60)
+    with pytest.raises(BrokenProcessPool):
+        running.result(timeout=60)
+    with pytest.raises(RuntimeError, match="shut down"):
+        pool.submit_concurrent(abs, -1)
