@@ -4,8 +4,9 @@ A world file becomes an :class:`ird_core.worlds.lavaland.LavalandInstance` (cond
 :data:`ird_core.worlds.lavaland.FILE_CONDITION`), so inference, planning, rendering, experiments and Rob
 need no special case. The format reuses the Nav2 ``map_server`` map YAML conventions where they
 apply: ``image`` paths are relative to the YAML file, ``resolution`` (metres per cell) and
-``origin: [x, y, yaw]`` are optional (defaults 1.0 and [0, 0, 0]), and the image's top row is the
-map's highest row (row 0 = the image's bottom row). Example (``worlds/figure1.yaml``)::
+``origin: [x, y, yaw]`` are optional (defaults 1.0 and [0, 0, 0]; the yaw must be 0), and the
+image's top row is the map's highest row (row 0 = the image's bottom row). Example
+(``worlds/figure1.yaml``)::
 
     name: figure1
     resolution: 1.0
@@ -26,7 +27,7 @@ Keys:
 * ``terrains`` (required): list of ``name`` (unique), ``colour`` (``[r, g, b]`` 0-255, or one
   grey value 0-255 for greyscale images; unique), optional ``true_reward`` (all terrains or
   none; used only for evaluation and the simulated designer). Every pixel of every image must
-  have a legend colour (exact match; PNG or PGM, any mode PIL converts to RGB).
+  have a legend colour (exact match; PNG, PGM or PPM, any mode PIL converts to RGB).
 * ``features``: how each terrain looks to the robot, i.e. the IRD hypothesis features.
   ``{type: indicator}`` (default): one indicator per terrain, in legend order.
   ``{type: vectors, names: [...]}``: each terrain gives ``features: [...]`` of that length
@@ -57,8 +58,28 @@ Labels: a terrain named like a Lavaland terrain keeps its :class:`ird_core.world
 value (so ``touches_lava``, ``reaches_target`` and the render colours apply); other names get
 labels 5, 6, ... in legend order, and ``instance.terrain_names`` is ``TERRAIN_NAMES`` plus them.
 
-Every error is a ValueError ``"<file>: <key>: <problem>"`` naming the offending value, raised
-while loading, before anything is planned or published.
+Every key is checked: an unknown key is refused with the closest known key as a hint
+(``horizn: unknown key (did you mean 'horizon'?)``); ``name``, terrain and feature names are
+printable strings of at most :data:`~ird_core.worlds.file_values.MAX_NAME_LENGTH` characters.
+``image`` paths stay inside the YAML file's folder (:mod:`ird_core.worlds.file_images`).
+
+Limits (:mod:`ird_core.worlds.file_values`): the YAML is read safely within a file size, a
+nesting depth and a node count with aliases expanded (:mod:`ird_core.worlds.safe_yaml`); each
+image is at most ``MAX_MAP_SIDE`` (1000) cells per side, checked from its header before
+decoding; ``H*W*d`` (features) and ``H*W*p`` (proxy features) at most ``MAX_MAP_VALUES`` (the
+nodes' ``max_map_values``); every horizon in [1, ``MAX_HORIZON``] (the nodes' ``max_horizon``)
+and ``(T + 1) * H * W`` at most ``MAX_PLAN_WORK`` (the planner's ``max_plan_work`` for one
+sample); the origin's yaw 0 (the grids are axis-aligned) and ``resolution`` in
+``RESOLUTION_RANGE``; at most ``MAX_TERRAINS`` terrains, ``MAX_FEATURES`` features and
+``MAX_TRAINING_WORLDS`` training worlds; feature values and proxy weights within
+:data:`ird_core.checks.MAX_ABS_FEATURE` and :data:`ird_core.checks.MAX_ABS_WEIGHT`; seeds in
+[0, 2**32 - 1]. So a world that loads is one the graph's services accept with their default
+limits.
+
+Every error is a ValueError ``"<file>: <key>: <problem>, got <value>"`` naming the offending
+value, raised while loading, before anything is planned or published. What loads but looks
+wrong is in ``WorldFile.warnings`` for the programs to print: a test start on a terrain no
+training world shows (e.g. lava), on which the designer's proxy says nothing.
 """
 
 from __future__ import annotations
@@ -69,22 +90,33 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-import yaml
-from PIL import Image
 
-from ird_core.vocabulary import Condition
+from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT
 from ird_core.worlds import lavaland
-from ird_core.worlds.file_values import FileErrors, read_colour, read_int, read_vector
+from ird_core.worlds.file_export import export_instance, write_image
+from ird_core.worlds.file_images import read_image
+from ird_core.worlds.file_values import (MAX_FEATURES, MAX_HORIZON, MAX_MAP_VALUES, MAX_PLAN_WORK, MAX_SEED,
+                                         MAX_TERRAINS, MAX_TRAINING_WORLDS, RESOLUTION_RANGE, FileErrors,
+                                         check_keys, read_colour, read_int, read_name, read_vector)
 from ird_core.worlds.observations import ObservationModel, TerrainClassifier, fit_classifier, make_observation_model
-from ird_core.worlds.terrain import NUM_TERRAINS, SAFE_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES, Terrain
+from ird_core.worlds.safe_yaml import read_yaml
+from ird_core.worlds.terrain import SAFE_TERRAINS, TERRAIN_NAMES, Terrain
 
-__all__ = ["FEATURE_TYPES", "PROXY_FEATURES", "WorldFile", "load_world_file", "load_world", "export_instance"]
+__all__ = ["FEATURE_TYPES", "PROXY_FEATURES", "WorldFile", "load_world_file", "load_world", "export_instance",
+           "write_image"]
 
 FEATURE_TYPES: tuple[str, ...] = ("indicator", "vectors", "gaussian")
 PROXY_FEATURES: tuple[str, ...] = ("hypothesis", "classifier")
 # make_instance's SeedSequence children: observation model, classifier, observations.
 _SEQ_MODEL, _SEQ_CLASSIFIER, _SEQ_OBSERVATIONS, _NUM_SEQ = 4, 5, 6, 9
 _LATENT_TERRAINS: tuple[str, ...] = tuple(TERRAIN_NAMES[t] for t in (*SAFE_TERRAINS, Terrain.LAVA))
+# The keys of each mapping (an unknown key is refused).
+TOP_KEYS = ("name", "resolution", "origin", "terrains", "features", "proxy_features", "seed", "proxy",
+            "proxy_intercept", "training_worlds", "test_world")
+TERRAIN_KEYS = ("name", "colour", "true_reward", "features", "mean", "covariance")
+FEATURES_KEYS = ("type", "names", "dim", "lavaland_seed", "observation_seed", "classifier_seed")
+TRAINING_WORLD_KEYS = ("image", "start", "horizon", "proxy")
+TEST_WORLD_KEYS = ("image", "start", "horizon")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,7 +126,8 @@ class WorldFile:
     Attributes:
         path: the YAML file; name: its ``name`` (default the file stem);
         resolution: metres per cell; origin: (x, y, yaw) of cell (0, 0)'s corner;
-        instance: the :class:`ird_core.worlds.lavaland.LavalandInstance`.
+        instance: the :class:`ird_core.worlds.lavaland.LavalandInstance`;
+        warnings: ``"<file>: <key>: <what>"`` lines about what loaded but looks wrong.
     """
 
     path: Path
@@ -102,17 +135,19 @@ class WorldFile:
     resolution: float
     origin: tuple[float, float, float]
     instance: lavaland.LavalandInstance
+    warnings: tuple[str, ...] = ()
 
 
 def _legend(ctx: FileErrors, raw: Any) -> tuple[list[dict], list[int], tuple[str, ...], np.ndarray | None]:
     """-> (entries, label per entry, terrain_names, true reward per label or None)."""
-    if not isinstance(raw, list) or not raw:
-        raise ctx.fail("terrains", "must be a non-empty list of {name, colour}", raw)
+    if not isinstance(raw, list) or not 1 <= len(raw) <= MAX_TERRAINS:
+        raise ctx.fail("terrains", f"must be a list of 1 to {MAX_TERRAINS} {{name, colour}}", raw)
     names: list[str] = []
     colours: set[tuple[int, int, int]] = set()
     for i, entry in enumerate(raw):
-        name = ctx.get(entry, "name", f"terrains[{i}].")
-        if not isinstance(name, str) or not name or name in names:
+        check_keys(ctx, entry, TERRAIN_KEYS, f"terrains[{i}].")
+        name = read_name(ctx, ctx.get(entry, "name", f"terrains[{i}]."), f"terrains[{i}].name")
+        if name in names:
             raise ctx.fail(f"terrains[{i}].name", "must be a unique non-empty string", name)
         colour = read_colour(ctx, ctx.get(entry, "colour", f"terrains[{i}]."), f"terrains[{i}].colour")
         if colour in colours:
@@ -135,35 +170,11 @@ def _legend(ctx: FileErrors, raw: Any) -> tuple[list[dict], list[int], tuple[str
     return raw, labels, terrain_names, reward
 
 
-def _read_image(ctx: FileErrors, base: Path, value: Any, key: str, legend: list[dict], labels: list[int]) -> np.ndarray:
-    """Image file -> (H, W) int8 labels, row 0 = the image's bottom row."""
-    if not isinstance(value, str) or not value:
-        raise ctx.fail(key, "must be an image file name", value)
-    image_path = base / value
-    try:
-        with Image.open(image_path) as image:
-            rgb = np.asarray(image.convert("RGB"), dtype=np.int64)
-    except (OSError, ValueError) as exc:
-        raise ctx.fail(key, f"cannot read the image ({exc})", value) from None
-    codes = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
-    legend_codes = np.array([(c[0] << 16) | (c[1] << 8) | c[2]
-                             for c in (read_colour(ctx, e["colour"], "") for e in legend)])
-    order = np.argsort(legend_codes)
-    pos = np.clip(np.searchsorted(legend_codes[order], codes), 0, len(order) - 1)
-    known = legend_codes[order][pos] == codes
-    if not known.all():
-        top_row, col = np.argwhere(~known)[0]
-        bad = tuple(int(v) for v in rgb[top_row, col])
-        raise ctx.fail(key, f"{value}: pixel (row {rgb.shape[0] - 1 - top_row}, col {col}) has colour {list(bad)}, "
-                       "which is not in the terrains legend", value)
-    return np.asarray(labels, dtype=np.int8)[order][pos][::-1].copy()
-
-
 def _gaussians(ctx: FileErrors, spec: dict, legend: list[dict], labels: list[int], num_labels: int):
     """-> (means (L, D), cholesky (L, D, D) per label (NaN where unused), model or None, rng seed)."""
     if "lavaland_seed" in spec:
-        seed = read_int(ctx, spec["lavaland_seed"], "features.lavaland_seed", 0)
-        dim = read_int(ctx, ctx.get(spec, "dim", "features."), "features.dim", 3)
+        seed = read_int(ctx, spec["lavaland_seed"], "features.lavaland_seed", 0, MAX_SEED)
+        dim = read_int(ctx, ctx.get(spec, "dim", "features."), "features.dim", 3, MAX_FEATURES)
         for i, entry in enumerate(legend):
             if entry["name"] not in _LATENT_TERRAINS:
                 raise ctx.fail(f"terrains[{i}].name", f"lavaland_seed models only {list(_LATENT_TERRAINS)}", entry["name"])
@@ -173,11 +184,14 @@ def _gaussians(ctx: FileErrors, spec: dict, legend: list[dict], labels: list[int
         chol = np.full((num_labels, dim, dim), np.nan)
         means[: len(_LATENT_TERRAINS)], chol[: len(_LATENT_TERRAINS)] = model.means, model.cholesky
         return means, chol, model, seqs[_SEQ_OBSERVATIONS], seqs[_SEQ_CLASSIFIER], seed
-    obs_seed = read_int(ctx, spec.get("observation_seed", 0), "features.observation_seed", 0)
+    obs_seed = read_int(ctx, spec.get("observation_seed", 0), "features.observation_seed", 0, MAX_SEED)
     dim = None
     means = chol = None
     for i, entry in enumerate(legend):
-        mean = read_vector(ctx, ctx.get(entry, "mean", f"terrains[{i}]."), f"terrains[{i}].mean", dim)
+        mean = read_vector(ctx, ctx.get(entry, "mean", f"terrains[{i}]."), f"terrains[{i}].mean", dim,
+                           MAX_ABS_FEATURE)
+        if mean.size > MAX_FEATURES:
+            raise ctx.fail(f"terrains[{i}].mean", f"must have at most {MAX_FEATURES} values", entry["mean"])
         if means is None:
             dim = mean.size
             means, chol = np.full((num_labels, dim), np.nan), np.full((num_labels, dim, dim), np.nan)
@@ -199,7 +213,7 @@ def _gaussians(ctx: FileErrors, spec: dict, legend: list[dict], labels: list[int
     if sorted(e["name"] for e in legend) == sorted(_LATENT_TERRAINS):
         k = len(_LATENT_TERRAINS)
         model = ObservationModel(means=means[:k], covariances=chol[:k] @ np.swapaxes(chol[:k], 1, 2))
-    classifier_seed = read_int(ctx, spec.get("classifier_seed", 0), "features.classifier_seed", 0)
+    classifier_seed = read_int(ctx, spec.get("classifier_seed", 0), "features.classifier_seed", 0, MAX_SEED)
     return means, chol, model, np.random.SeedSequence(obs_seed), classifier_seed, obs_seed
 
 
@@ -211,17 +225,6 @@ def _sample(means: np.ndarray, chol: np.ndarray, labels: np.ndarray, rng: np.ran
         mask = labels == k
         out[mask] = means[k] + noise[mask] @ chol[k].T
     return out
-
-
-def _read_document(ctx: FileErrors) -> dict:
-    """The YAML mapping of the file."""
-    try:
-        doc = yaml.safe_load(ctx.path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"{ctx.path}: cannot read the world file ({exc})") from None
-    if not isinstance(doc, dict):
-        raise ctx.fail("(top level)", "must be a mapping of keys", doc)
-    return doc
 
 
 class _Worlds(NamedTuple):
@@ -236,16 +239,15 @@ class _Worlds(NamedTuple):
 def _read_worlds(ctx: FileErrors, doc: dict, legend: list[dict], labels: list[int]) -> _Worlds:
     """``training_worlds`` then ``test_world``: images of one size, starts on the map, horizons >= 1."""
     raw_worlds = ctx.get(doc, "training_worlds", "")
-    if not isinstance(raw_worlds, list) or not raw_worlds:
-        raise ctx.fail("training_worlds", "must be a non-empty list of worlds", raw_worlds)
+    if not isinstance(raw_worlds, list) or not 1 <= len(raw_worlds) <= MAX_TRAINING_WORLDS:
+        raise ctx.fail("training_worlds", f"must be a list of 1 to {MAX_TRAINING_WORLDS} worlds", raw_worlds)
     keyed = [(f"training_worlds[{i}]", w) for i, w in enumerate(raw_worlds)]
     keyed.append(("test_world", ctx.get(doc, "test_world", "")))
     out = _Worlds(keyed, [], [], [])
     for key, world in keyed:
-        if not isinstance(world, dict):
-            raise ctx.fail(key, "must be a mapping with image, start, horizon", world)
+        check_keys(ctx, world, TEST_WORLD_KEYS if key == "test_world" else TRAINING_WORLD_KEYS, f"{key}.")
         image_key = f"{key}.image"
-        grid = _read_image(ctx, ctx.path.parent, ctx.get(world, "image", f"{key}."), image_key, legend, labels)
+        grid = read_image(ctx, ctx.path.parent, ctx.get(world, "image", f"{key}."), image_key, legend, labels)
         if out.maps and grid.shape != out.maps[0].shape:
             raise ctx.fail(image_key, f"{world['image']} is {grid.shape[1]}x{grid.shape[0]} (W x H) but "
                            f"{keyed[0][1]['image']} is {out.maps[0].shape[1]}x{out.maps[0].shape[0]}", world["image"])
@@ -257,14 +259,26 @@ def _read_worlds(ctx: FileErrors, doc: dict, legend: list[dict], labels: list[in
             raise ctx.fail(f"{key}.start", f"is off the {grid.shape[0]}x{grid.shape[1]} (H x W) map", start)
         out.maps.append(grid)
         out.starts.append((start[0], start[1]))
-        out.horizons.append(read_int(ctx, ctx.get(world, "horizon", f"{key}."), f"{key}.horizon", 1))
+        horizon = read_int(ctx, ctx.get(world, "horizon", f"{key}."), f"{key}.horizon", 1, MAX_HORIZON)
+        work = (horizon + 1) * grid.size
+        if work > MAX_PLAN_WORK:
+            raise ctx.fail(f"{key}.horizon", f"(T + 1) x H x W = {horizon + 1} x {grid.shape[0]} x {grid.shape[1]} = "
+                           f"{work} exceeds the limit {MAX_PLAN_WORK} (the planner's max_plan_work)", horizon)
+        out.horizons.append(horizon)
     return out
+
+
+def _check_map_values(ctx: FileErrors, key: str, grid: np.ndarray, depth: int, what: str) -> None:
+    """``H*W*depth`` at most ``MAX_MAP_VALUES``, checked before the maps are built."""
+    if grid.size * depth > MAX_MAP_VALUES:
+        raise ctx.fail(key, f"H x W x {what} = {grid.shape[0]} x {grid.shape[1]} x {depth} = {grid.size * depth} "
+                       f"values exceed the limit {MAX_MAP_VALUES} (the nodes' max_map_values)", depth)
 
 
 def _feature_kinds(ctx: FileErrors, doc: dict) -> tuple[dict, str, str]:
     """``features`` (its mapping and type) and ``proxy_features``, checked."""
-    spec = doc.get("features", {"type": "indicator"})
-    if not isinstance(spec, dict) or spec.get("type", "indicator") not in FEATURE_TYPES:
+    spec = check_keys(ctx, doc.get("features", {"type": "indicator"}), FEATURES_KEYS, "features.")
+    if spec.get("type", "indicator") not in FEATURE_TYPES:
         raise ctx.fail("features.type", f"must be one of {list(FEATURE_TYPES)}", spec)
     kind = spec.get("type", "indicator")
     proxy_kind = doc.get("proxy_features", "hypothesis")
@@ -282,13 +296,14 @@ def _label_table(ctx: FileErrors, spec: dict, kind: str, legend: list[dict], lab
         table[labels, np.arange(len(legend))] = 1.0
         return tuple(e["name"] for e in legend), table
     names = ctx.get(spec, "names", "features.")
-    if (not isinstance(names, list) or not names or not all(isinstance(n, str) and n for n in names)
-            or len(set(names)) != len(names)):
-        raise ctx.fail("features.names", "must be a list of unique non-empty names", names)
+    if not isinstance(names, list) or not 1 <= len(names) <= MAX_FEATURES or len(set(map(str, names))) != len(names):
+        raise ctx.fail("features.names", f"must be a list of 1 to {MAX_FEATURES} unique names", names)
+    for i, n in enumerate(names):
+        read_name(ctx, n, f"features.names[{i}]")
     table = np.zeros((num_labels, len(names)))
     for i, entry in enumerate(legend):
         table[labels[i]] = read_vector(ctx, ctx.get(entry, "features", f"terrains[{i}]."), f"terrains[{i}].features",
-                                   len(names))
+                                       len(names), MAX_ABS_FEATURE)
     return tuple(names), table
 
 
@@ -304,14 +319,21 @@ class _Features(NamedTuple):
 
 
 def _features(ctx: FileErrors, spec: dict, kind: str, legend: list[dict], labels: list[int], num_labels: int,
-              maps: list[np.ndarray]) -> _Features:
-    """The hypothesis features of every map (training worlds, then test)."""
+              worlds: _Worlds) -> _Features:
+    """The hypothesis features of every map (training worlds, then test); their size checked first."""
+    maps, key = worlds.maps, worlds.keyed[0][0] + ".image"
     if kind == "gaussian":
         means, chol, model, obs_seq, clf_seed, seed = _gaussians(ctx, spec, legend, labels, num_labels)
+        _check_map_values(ctx, key, maps[0], means.shape[1], "features")
         rng = np.random.default_rng(obs_seq)
         features = [_sample(means, chol, grid, rng) for grid in maps]  # training worlds, then test
+        for (world_key, _), grid in zip(worlds.keyed, features):
+            if np.max(np.abs(grid)) > MAX_ABS_FEATURE:
+                raise ctx.fail(world_key, f"a Gaussian draw exceeds the feature limit {MAX_ABS_FEATURE:g} (means or "
+                               "variances too large)", float(np.max(np.abs(grid))))
         return _Features(features, tuple(f"obs_{i:02d}" for i in range(means.shape[1])), model, clf_seed, seed)
     names, table = _label_table(ctx, spec, kind, legend, labels, num_labels)
+    _check_map_values(ctx, key, maps[0], len(names), "features")
     return _Features([table[grid] for grid in maps], names, None, None, 0)
 
 
@@ -323,8 +345,9 @@ def _proxy_space(ctx: FileErrors, proxy_kind: str, features: _Features, legend: 
     if features.model is None:
         raise ctx.fail("proxy_features", f"classifier needs gaussian terrains exactly {list(_LATENT_TERRAINS)}",
                        [e["name"] for e in legend])
-    classifier = fit_classifier(features.model, np.random.default_rng(features.classifier_seed))
     names = tuple(f"clf_{TERRAIN_NAMES[t]}" for t in SAFE_TERRAINS)
+    _check_map_values(ctx, "proxy_features", features.maps[0][..., 0], len(names), "proxy features")
+    classifier = fit_classifier(features.model, np.random.default_rng(features.classifier_seed))
     return classifier, names, [classifier.predict_proba(f) for f in features.maps]
 
 
@@ -334,34 +357,55 @@ def _proxies(ctx: FileErrors, doc: dict, keyed: list[tuple[str, Any]], num_proxy
     proxies = []
     for key, world in keyed[:-1]:
         if "proxy" in world:
-            proxies.append(read_vector(ctx, world["proxy"], f"{key}.proxy", num_proxy_features))
+            proxies.append(read_vector(ctx, world["proxy"], f"{key}.proxy", num_proxy_features, MAX_ABS_WEIGHT))
         elif default_proxy is not None:
-            proxies.append(read_vector(ctx, default_proxy, "proxy", num_proxy_features))
+            proxies.append(read_vector(ctx, default_proxy, "proxy", num_proxy_features, MAX_ABS_WEIGHT))
         else:
             raise ValueError(f"{ctx.path}: {key}.proxy: missing required key (or give a top-level proxy)")
     return proxies
+
+
+def _geometry(ctx: FileErrors, doc: dict) -> tuple[float, tuple[float, float, float]]:
+    """``resolution`` (in ``RESOLUTION_RANGE``) and ``origin`` ``[x, y, yaw]`` (yaw 0)."""
+    resolution = doc.get("resolution", 1.0)
+    low, high = RESOLUTION_RANGE
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or not low <= resolution <= high:
+        raise ctx.fail("resolution", f"must be a number in [{low:g}, {high:g}] (metres per cell)", resolution)
+    origin = read_vector(ctx, doc.get("origin", [0.0, 0.0, 0.0]), "origin", 3)
+    if origin[2] != 0.0:
+        raise ctx.fail("origin", "the yaw must be 0 (the grids are axis-aligned)", doc["origin"])
+    return float(resolution), (float(origin[0]), float(origin[1]), 0.0)
+
+
+def _unseen_start(ctx: FileErrors, worlds: _Worlds, terrain_names: tuple[str, ...]) -> tuple[str, ...]:
+    """A warning when the test start is on a terrain no training world shows."""
+    seen = set(np.unique(np.concatenate([m.ravel() for m in worlds.maps[:-1]])).tolist())
+    label = int(worlds.maps[-1][worlds.starts[-1]])
+    if label in seen:
+        return ()
+    return (f"{ctx.path}: test_world.start: {list(worlds.starts[-1])} is on {terrain_names[label]}, a terrain no "
+            "training world shows (the proxy says nothing about it, and Rob starts on it)",)
 
 
 def load_world_file(path: str | os.PathLike) -> WorldFile:
     """Load and validate a world file (see the module docstring); ValueError on any bad value."""
     path = Path(path)
     ctx = FileErrors(path)
-    doc = _read_document(ctx)
-    resolution = doc.get("resolution", 1.0)
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or not resolution > 0:
-        raise ctx.fail("resolution", "must be a number > 0", resolution)
-    origin = read_vector(ctx, doc.get("origin", [0.0, 0.0, 0.0]), "origin", 3)
-    name = doc.get("name", path.stem)
+    doc = read_yaml(ctx)
+    check_keys(ctx, doc, TOP_KEYS, "")
+    resolution, origin = _geometry(ctx, doc)
+    name = read_name(ctx, doc["name"], "name") if "name" in doc else path.stem
     legend, labels, terrain_names, true_reward = _legend(ctx, ctx.get(doc, "terrains", ""))
     worlds = _read_worlds(ctx, doc, legend, labels)
     spec, kind, proxy_kind = _feature_kinds(ctx, doc)
-    features = _features(ctx, spec, kind, legend, labels, len(terrain_names), worlds.maps)
+    features = _features(ctx, spec, kind, legend, labels, len(terrain_names), worlds)
     classifier, proxy_names, proxy_maps = _proxy_space(ctx, proxy_kind, features, legend)
     proxies = _proxies(ctx, doc, worlds.keyed, len(proxy_names))
-    seed = read_int(ctx, doc.get("seed", features.seed), "seed", 0)
+    seed = read_int(ctx, doc.get("seed", features.seed), "seed", 0, MAX_SEED)
     intercept = doc.get("proxy_intercept", 0.0)
-    if isinstance(intercept, bool) or not isinstance(intercept, (int, float)) or not np.isfinite(intercept):
-        raise ctx.fail("proxy_intercept", "must be a finite number", intercept)
+    if (isinstance(intercept, bool) or not isinstance(intercept, (int, float)) or not np.isfinite(intercept)
+            or abs(intercept) > MAX_ABS_WEIGHT):
+        raise ctx.fail("proxy_intercept", f"must be a finite number of magnitude at most {MAX_ABS_WEIGHT:g}", intercept)
     maps, starts, horizons, feature_maps = worlds.maps, worlds.starts, worlds.horizons, features.maps
     extra = tuple(lavaland.TrainingWorld(maps[i], feature_maps[i], proxy_maps[i], starts[i], horizons[i], proxies[i])
                   for i in range(1, len(worlds.keyed) - 1))
@@ -374,68 +418,9 @@ def load_world_file(path: str | os.PathLike) -> WorldFile:
         proxy_intercept=float(intercept), classifier=classifier, observation_model=features.model,
         terrain_names=terrain_names, true_terrain_reward=true_reward, extra_training_worlds=extra,
     )
-    return WorldFile(path, str(name), float(resolution), tuple(float(v) for v in origin), instance)
+    return WorldFile(path, name, resolution, origin, instance, _unseen_start(ctx, worlds, terrain_names))
 
 
 def load_world(path: str | os.PathLike) -> lavaland.LavalandInstance:
     """The instance of a world file (:func:`load_world_file` without the metadata)."""
     return load_world_file(path).instance
-
-
-def _hex_rgb(colour: str) -> list[int]:
-    return [int(colour[i: i + 2], 16) for i in (1, 3, 5)]
-
-
-def write_image(labels: np.ndarray, colours: dict[int, list[int]], path: str | os.PathLike) -> None:
-    """(H, W) labels -> an RGB PNG, row 0 at the image's bottom."""
-    labels = np.asarray(labels)
-    lut = np.zeros((int(labels.max()) + 1, 3), dtype=np.uint8)
-    for label, rgb in colours.items():
-        if label < lut.shape[0]:
-            lut[label] = rgb
-    Image.fromarray(lut[labels[::-1]]).save(path)
-
-
-def export_instance(instance: lavaland.LavalandInstance, directory: str | os.PathLike, name: str,
-                    obs_dim: int | None = None) -> Path:
-    """Write a generated Lavaland instance as ``<directory>/<name>.yaml`` plus its PNGs.
-
-    Latent conditions store ``lavaland_seed`` (the instance's seed) and ``dim``: loading
-    regenerates the same observation model, classifier and observation draws.
-
-    Returns:
-        The YAML path.
-    """
-    condition = instance.condition
-    if condition not in lavaland.ALL_CONDITIONS:
-        raise ValueError(f"instance.condition: only generated Lavaland instances can be exported, got {condition!r}")
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    present = NUM_TERRAINS if condition == Condition.POT_OF_GOLD else len(_LATENT_TERRAINS)
-    colours = {t: _hex_rgb(TERRAIN_COLORS[t]) for t in range(present)}
-    terrains: list[dict] = [{"name": TERRAIN_NAMES[t], "colour": colours[t],
-                             "true_reward": float(lavaland.TRUE_TERRAIN_REWARD[t])} for t in range(present)]
-    if condition in (Condition.SIDE_EFFECTS, Condition.POT_OF_GOLD):
-        features: dict = {"type": "indicator"}
-    elif condition == Condition.REWARD_HACKING:
-        features = {"type": "vectors", "names": list(instance.feature_names)}
-        vectors = lavaland._sensor_features(np.arange(present, dtype=np.int8)[None])[0]
-        for t, entry in enumerate(terrains):
-            entry["features"] = [float(v) for v in vectors[t]]
-    else:
-        features = {"type": "gaussian", "dim": int(obs_dim or instance.num_features), "lavaland_seed": instance.seed}
-    images = {"train": f"{name}_train.png", "test": f"{name}_test.png"}
-    write_image(instance.train_labels, colours, directory / images["train"])
-    write_image(instance.test_labels, colours, directory / images["test"])
-    doc = {
-        "name": name, "seed": instance.seed, "resolution": 1.0, "origin": [0.0, 0.0, 0.0], "terrains": terrains, "features": features,
-        "proxy_features": "classifier" if instance.classifier is not None else "hypothesis",
-        "proxy": [float(v) for v in instance.proxy_weights], "proxy_intercept": float(instance.proxy_intercept),
-        "training_worlds": [{"image": images["train"], "start": list(instance.train_start),
-                             "horizon": instance.train_horizon}],
-        "test_world": {"image": images["test"], "start": list(instance.test_start), "horizon": instance.test_horizon},
-    }
-    out = directory / f"{name}.yaml"
-    out.write_text(f"# Exported from lavaland.make_instance({condition!r}, {instance.seed}).\n"
-                   + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
-    return out

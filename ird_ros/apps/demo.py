@@ -160,8 +160,11 @@ def write_params(run_dir: Path, args: argparse.Namespace, spec: TrialSpec) -> Pa
 
 
 def mission_spec(args: argparse.Namespace) -> tuple[TrialSpec, str]:
-    """The trial spec of the demo world (the experiments' small setting) and the scene's name;
-    ``ValueError`` for an unreadable ``--world``."""
+    """The trial spec of the demo world (the experiments' small setting) and the scene's name.
+
+    ``--world`` is loaded here with every check the graph's services apply (before any node
+    starts): ``ValueError`` ``--world: <file>: <key>: ...`` if it does not load; its warnings
+    are printed as ``[demo] warning:`` lines on stderr."""
     base = TrialSpec(condition=args.condition, seed=args.seed, **QUICK)
     beta = args.beta if args.beta is not None else base.beta
     num_samples = args.num_samples if args.num_samples is not None else base.num_samples
@@ -170,8 +173,13 @@ def mission_spec(args: argparse.Namespace) -> tuple[TrialSpec, str]:
         return spec, args.condition
     from ird_core.worlds.world_file import load_world_file
 
-    scene = load_world_file(args.world).name
-    return dataclasses.replace(spec, condition=lavaland.FILE_CONDITION, world=str(args.world.resolve())), scene
+    try:
+        loaded = load_world_file(args.world)
+    except ValueError as exc:
+        raise ValueError(f"--world: {exc}") from None
+    for warning in loaded.warnings:
+        print(f"[demo] warning: --world: {warning}", file=sys.stderr, flush=True)
+    return dataclasses.replace(spec, condition=lavaland.FILE_CONDITION, world=str(args.world.resolve())), loaded.name
 
 
 def prepare(args: argparse.Namespace, spec: TrialSpec, scene: str) -> Setup:
@@ -349,8 +357,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         spec, scene = mission_spec(args)
     except ValueError as exc:
-        print(f"[demo] --world: {exc}", file=sys.stderr)
+        print(f"[demo] {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # while loading --world: nothing was started
+        print("\n[demo] stopped by Ctrl-C", file=sys.stderr)
+        return 130
     setup = prepare(args, spec, scene)
     t_start = time.monotonic()
     print_header(args, setup)

@@ -28,8 +28,10 @@ FASTRTPS_DEFAULT_PROFILES_FILE of your own is kept (see ird_ros/graph/domains.py
 
 --world FILE (a world file, e.g. worlds/figure1.yaml): the world node publishes it instead of
 a generated Lavaland and perception takes its classifier from it (both get ``-p
-world_file:=FILE`` after the params file). The file is loaded here first: a bad file is
-reported (file, key, value) with exit status 2 before any node starts.
+world_file:=FILE`` after the params file). The file is loaded here first, with every check the
+services would apply later (sizes, horizons, yaw; ``ird_core.worlds.world_file``): a bad file is
+reported (file, key, value) with exit status 2 before any node starts, and what loads but looks
+wrong (a start on a terrain no training world shows) is printed as a ``[launcher] warning:`` line.
 
 --mission [N] (N = 1 without a number): once the graph is ready, a client sends Rob navigation
 goals through the navigator's action /ird/navigate: for each seed 0..N-1 it generates that seed's
@@ -41,9 +43,10 @@ recorder (--record) holds the missions for analyze_bag.py; --mission-then-exit s
 with exit status 0 if every goal succeeded, else 1. --viz adds the viz node (a live view over the
 Foxglove protocol) when this checkout has it.
 
-Exit status: 0 after a requested stop (signal or --run-for); 1 if the graph could not start,
-did not become ready within --timeout (what is missing is printed) or every node died; 2 for
-bad arguments. See ird_ros/launch/launcher.py for how readiness is decided.
+Exit status: 0 after a requested stop (signal or --run-for, also during the start-up checks);
+1 if the graph could not start, did not become ready within --timeout (what is missing is
+printed) or every node died; 2 for bad arguments or a bad --world file. See
+ird_ros/launch/launcher.py for how readiness is decided.
 """
 
 from __future__ import annotations
@@ -145,6 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     except (LaunchError, ValueError) as exc:
         _error(str(exc))
         return 2
+    except _StopRequested:  # while loading --world: nothing was started
+        print(f"[launcher] {signals.received} received: stopping", flush=True)
+        return 0
     return _run(graph, args, signals)
 
 
@@ -180,9 +186,11 @@ def _node_table(args: argparse.Namespace) -> list[NodeSpec] | None:
     if args.world is None:
         return specs
     try:
-        load_world_file(args.world)
+        loaded = load_world_file(args.world)
     except ValueError as exc:
         raise ValueError(f"--world: {exc}") from None
+    for warning in loaded.warnings:
+        print(f"[launcher] warning: --world: {warning}", file=sys.stderr, flush=True)
     return with_world_file(specs if specs is not None else NODES, args.world)
 
 

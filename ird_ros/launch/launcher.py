@@ -208,8 +208,13 @@ class GraphLauncher:
         return self._infos()[name].state
 
     def output(self, name: str, last: int = 60) -> str:
-        """The last lines a node printed (modes prefix and quiet)."""
-        return "" if self._sup is None else self._sup.output(name, last)
+        """The last lines a node printed: its output pump's (modes prefix and quiet), else the end of
+        ``<log_dir>/<name>.log`` (mode files: no pump reads the file; a death report needs it)."""
+        if self._sup is None:
+            return ""
+        if self.plan.output is OutputMode.FILES:
+            return _file_tail(Path(self._env["ROS_LOG_DIR"]) / f"{name}.log", last)
+        return self._sup.output(name, last)
 
     def events(self) -> list[Event]:
         return [] if self._sup is None else self._sup.events()
@@ -280,7 +285,7 @@ class GraphLauncher:
             self._say(f"node {ev.name} (pid {ev.pid}) {ev.detail}"
                       + (f"; respawning in {self.plan.respawn_delay:g} s" if ev.will_respawn else ""))
             if not ev.will_respawn and self.plan.output is not OutputMode.PREFIX and self._sup is not None:
-                tail = self._sup.output(ev.name, 15)
+                tail = self.output(ev.name, 15)
                 if tail:
                     self._say(f"last output of {ev.name}:\n{tail}")
         elif isinstance(ev, ProcessGaveUp):
@@ -334,7 +339,7 @@ class GraphLauncher:
         assert self._sup is not None
         return "node(s) died before becoming ready:\n" + "\n".join(
             f"  {c.name} (pid {c.pid}) {describe_exit(c.returncode)}; last output:\n"
-            + "\n".join("    " + line for line in self._sup.output(c.name, 15).splitlines())
+            + "\n".join("    " + line for line in self.output(c.name, 15).splitlines())
             for c in dead)
 
     def _missing_report(self, children: Sequence[ChildInfo], lagging: Sequence[str]) -> str:
@@ -409,3 +414,14 @@ class GraphLauncher:
             with contextlib.suppress(Exception):
                 self._log_tmp.cleanup()
             self._log_tmp = None
+
+
+def _file_tail(path: Path, last: int, max_bytes: int = 64 * 1024) -> str:
+    """The last ``last`` lines of the file's last ``max_bytes`` bytes ("" if it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(max(0, os.fstat(fh.fileno()).st_size - max_bytes))
+            data = fh.read(max_bytes)
+    except OSError:
+        return ""
+    return "\n".join(data.decode("utf-8", "replace").splitlines()[-last:])

@@ -97,6 +97,24 @@ BAD_FILES = [
     (lambda d: _set(d, {"type": "gaussian", "dim": 4}, "features"), ["terrains[0].mean: missing"]),
     (lambda d: _set(d, 0.0, "resolution"), ["resolution", "got 0.0"]),
     (lambda d: _set(d, [0.0, 0.0], "origin"), ["origin", "[0.0, 0.0]"]),
+    # every key is known, every value typed and within the services' limits
+    (lambda d: _set(d, 6, "training_worlds", 0, "horizn"), ["training_worlds[0].horizn", "did you mean 'horizon'?"]),
+    (lambda d: _set(d, [1.0] * 4, "proxyy"), ["proxyy: unknown key", "did you mean 'proxy'?"]),
+    (lambda d: _set(d, [1.0] * 4, "test_world", "proxy"), ["test_world.proxy: unknown key", "image, start, horizon"]),
+    (lambda d: _set(d, 1, "terrains", 0, "colur"), ["terrains[0].colur", "did you mean 'colour'?"]),
+    (lambda d: _set(d, {"type": "indicator", "dims": 3}, "features"), ["features.dims", "did you mean 'dim'?"]),
+    (lambda d: _set(d, "bad\nname", "name"), ["name:", "printable string", "'bad\\nname'"]),
+    (lambda d: _set(d, ["a"], "name"), ["name:", "printable string", "['a']"]),
+    (lambda d: _set(d, "x" * 65, "name"), ["name:", "1 to 64 characters"]),
+    (lambda d: _set(d, [0.0, 0.0, 0.5], "origin"), ["origin", "yaw must be 0", "[0.0, 0.0, 0.5]"]),
+    (lambda d: _set(d, 1e9, "resolution"), ["resolution", "[1e-06, 1e+06]", "1000000000.0"]),
+    (lambda d: _set(d, 1001, "test_world", "horizon"), ["test_world.horizon", "in [1, 1000]", "got 1001"]),
+    (lambda d: _set(d, 2**32, "seed"), ["seed", "4294967295", "got 4294967296"]),
+    (lambda d: _set(d, [1e5, 0.0, 0.0, 0.0], "proxy"), ["proxy", "limit 10000", "100000.0"]),
+    (lambda d: _set(d, 1e5, "proxy_intercept"), ["proxy_intercept", "10000", "100000.0"]),
+    (lambda d: _set(d, [], "terrains"), ["terrains", "1 to 64"]),
+    (lambda d: _set(d, [d["training_worlds"][0]] * 17, "training_worlds"), ["training_worlds", "1 to 16"]),
+    (lambda d: _set(d, ["dirt"], "terrains", 0), ["terrains[0]", "must be a mapping", "['dirt']"]),
 ]
 
 
@@ -273,7 +291,7 @@ def test_shipped_examples_load_and_match_their_generator(tmp_path: Path, name: s
     edited = copy.deepcopy(doc)
     edited["test_world"]["horizon"] = 0
     for world in edited["training_worlds"] + [edited["test_world"]]:
-        world["image"] = str(WORLDS / world["image"])
+        (tmp_path / world["image"]).write_bytes((WORLDS / world["image"]).read_bytes())
     with pytest.raises(ValueError, match=re.escape("test_world.horizon")):
         world_file.load_world(_write(tmp_path, edited))
 
