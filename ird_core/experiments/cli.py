@@ -58,11 +58,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ird_core.experiments import parallel, report
+from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.summaries import aggregate
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
+from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
-from ird_core.worlds.world_file import load_world
+from ird_core.worlds.world_file import load_world_file
 
 __all__ = ["SPEC_FLAGS", "SHARED_SAMPLER_FLAGS", "DEFAULT_TRIALS", "build_parser", "resolve_spec_flags",
            "z_samplers", "spec_settings", "trial_settings", "world_conditions", "run_local", "run_dask",
@@ -100,7 +101,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the trials on this world file (seeds vary the sampler only)")
     p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS)
     p.add_argument("--z-methods", nargs="+", default=list(Z_METHODS), choices=Z_METHODS)
-    p.add_argument("--no-factorial", action="store_true", help="main experiment only")
+    p.add_argument("--no-factorial", action="store_true", help="no granularity x baseline factorial")
+    p.add_argument("--counts", choices=PROXY_COUNTS, default=None,
+                   help="the observation model's counts: optimal-path or MaxEnt (docs/modelling.md)")
+    p.add_argument("--temperature", type=float, default=None,
+                   help="the MaxEnt designer's temperature (counts maxent; default 1)")
+    p.add_argument("--risk", choices=RISK_MEASURES, default=None, help="the main IRD planner's risk measure")
+    p.add_argument("--risk-level", type=float, default=None,
+                   help="its level: alpha in (0, 1] for cvar, lambda >= 0 for mean_sd")
+    p.add_argument("--frontier", action=argparse.BooleanOptionalAction, default=None,
+                   help="plan every risk level of the frontier from every posterior (frontier.md, frontier_<c>.png)")
+    p.add_argument("--controls", action=argparse.BooleanOptionalAction, default=None,
+                   help="the control planners: prior only, novelty-avoiding, the other Sample-Z reading, "
+                        "Sample-Z without its own term")
     p.add_argument("--quick", action="store_true",
                    help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
     parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
@@ -161,10 +174,15 @@ def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
     return out
 
 
+#: TrialSpec fields set by an optional flag of the same name (None: the TrialSpec default).
+MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "risk", "risk_level", "frontier", "controls")
+
+
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The TrialSpec keywords of the (resolved) flags."""
+    model = {f: getattr(args, f) for f in MODEL_FLAGS if getattr(args, f, None) is not None}
     return dict(**{f: getattr(args, f) for f in SPEC_FLAGS}, z_methods=tuple(args.z_methods),
-                factorial=not args.no_factorial, **z_samplers(args))
+                factorial=not args.no_factorial, **model, **z_samplers(args))
 
 
 def trial_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -181,9 +199,11 @@ def world_conditions(args: argparse.Namespace, settings: dict[str, Any]) -> list
     if args.world is None:
         return list(args.conditions)
     try:
-        load_world(args.world)
+        loaded = load_world_file(args.world)
     except ValueError as exc:
         raise ValueError(f"--world: {exc}") from None
+    for line in loaded.warnings:
+        print(f"warning: {line}", file=sys.stderr)
     settings["world"] = str(args.world.resolve())
     return [FILE_CONDITION]
 
@@ -231,6 +251,7 @@ def run_experiment(args: argparse.Namespace, settings: dict[str, Any], condition
     summaries = aggregate(results)
     run = report.RunRecord(command, wall, _shown_settings(args, settings, conditions, trials))
     report.write_report(args.out, results, summaries, run)
+    frontier_report.write_frontier(args.out, summaries, run)
     print(report.markdown_table(summaries, "main"))
     print("\n".join(report.claim_check(summaries)))
     print(f"outputs in {args.out}")

@@ -89,7 +89,7 @@ def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.nd
     worlds = [inst.train_features, *(w.features for w in inst.extra_training_worlds)]
     cells = novelty_avoiding_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights,
                                   novel_cells(list(worlds), inst.test_features))
-    rows.append(TrialResult("controls", spec.condition, spec.seed, "novelty", "", "literal", "none",
+    rows.append(TrialResult("controls", spec.condition, spec.seed, "novelty", "novelty", "literal", "none",
                             *outcome(inst, cells), math.nan, "dp", False, *nan3,
                             tuple((int(r), int(c)) for r, c in cells)))
     if ZMethod.SAMPLE_Z in spec.z_methods:
