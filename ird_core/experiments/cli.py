@@ -46,6 +46,15 @@ sampler and the Sample-Z proxies: N trials measure how the plans vary with the p
 randomness on that one map. The posterior is the joint one over every training world of the
 file. A bad file: exit status 2 with the loader's message (file, key, value).
 
+Model and planner: --counts optimal|maxent and --temperature T choose the observation model
+(ird_core.posterior.ObservationModel: how the proxy's behaviour is counted; default maxent at
+T = 1); --risk min|cvar|mean_sd with --risk-level choose the main IRD planner's risk measure
+(default min). --frontier adds, from every posterior, the per-step plan at every level of
+ird_core.experiments.controls.FRONTIER_RISKS; --controls adds the control planners (prior only,
+novelty-avoiding, Sample-Z's other counts reading, Sample-Z without its own term). Either writes
+frontier.md (the table and the goal check: lava <= 2%, target >= 0.8 x literal, gap closed >= 90%)
+and frontier_<condition>.png.
+
 Exit status: 0 done, 2 a bad argument (the message names it).
 """
 
