@@ -205,12 +205,14 @@ def print_header(args: argparse.Namespace, setup: Setup) -> None:
 # --------------------------------------------------------------------------- the survey
 
 
-def survey(spec: TrialSpec) -> dict[str, int]:
-    """Seeds on which each planner touches lava, straight from ird_core (runs beside the graph)."""
-    counts: dict[str, int] = {}
+def survey(spec: TrialSpec) -> dict[str, tuple[int, int]]:
+    """Seeds on which each planner touches lava and reaches a target, straight from ird_core
+    (runs beside the graph): ``{planner: (lava seeds, target seeds)}``."""
+    counts: dict[str, tuple[int, int]] = {}
     for seed in SURVEY_SEEDS:
         for result in run_trial(dataclasses.replace(spec, seed=seed)):
-            counts[result.planner] = counts.get(result.planner, 0) + int(result.touched_lava)
+            lava, target = counts.get(result.planner, (0, 0))
+            counts[result.planner] = (lava + int(result.touched_lava), target + int(result.reached_target))
     return counts
 
 
@@ -235,9 +237,10 @@ class Survey:
             return
         counts = self._job.get()
         n = len(SURVEY_SEEDS)
+        (lit_lava, lit_target), (ird_lava, ird_target) = counts["literal"], counts["ird_" + method]
         print(f"\nOver seeds {SURVEY_SEEDS[0]}-{SURVEY_SEEDS[-1]} ({scene}, same settings, ird_core "
-              f"directly): literal touches lava on {counts['literal']}/{n}, "
-              f"IRD on {counts['ird_' + method]}/{n}.")
+              f"directly): literal touches lava on {lit_lava}/{n} and reaches a target on {lit_target}/{n}; "
+              f"IRD touches lava on {ird_lava}/{n} and reaches a target on {ird_target}/{n}.")
         self._pool.close()
         self._pool.join()
 
