@@ -49,7 +49,9 @@ def test_given_values_are_kept() -> None:
                                 baseline="log_z", risk_measure="", queries=3, label="mine"), limits=LIMITS)
     assert (checked.method, checked.beta, checked.num_samples, checked.seed) == ("sample_z", 2.5, 64, 9)
     assert (checked.mode, checked.baseline, checked.queries, checked.label) == ("trajectory", "log_z", 3, "mine")
-    assert checked.risk_measure is RiskMeasure.MIN
+    assert checked.risk_measure is None  # "" = the planner's default measure
+    cvar = check_goal(**goal(risk_measure="cvar", risk_level=0.25), limits=LIMITS)
+    assert (cvar.risk_measure, cvar.risk_level) == (RiskMeasure.CVAR, 0.25)
 
 
 def test_empty_method_uses_the_current_posterior() -> None:
@@ -67,7 +69,11 @@ def test_empty_method_uses_the_current_posterior() -> None:
     (dict(seed=-3), "seed"),
     (dict(mode="zigzag"), "mode"),
     (dict(baseline="nope"), "baseline"),
-    (dict(risk_measure="cvar"), "risk_measure"),
+    (dict(risk_measure="worst"), "risk_measure"),
+    (dict(risk_measure="cvar"), "risk_level"),
+    (dict(risk_measure="cvar", risk_level=1.5), "risk_level"),
+    (dict(risk_measure="mean_sd", risk_level=1.0, mode="trajectory"), "risk_measure"),
+    (dict(risk_measure="", risk_level=101.0), "risk_level"),
     (dict(risk_level=0.5), "risk_level"),
     (dict(queries=-1), "queries"),
     (dict(queries=4), "queries"),
@@ -80,9 +86,24 @@ def test_bad_goals_are_refused_naming_the_field(changes: dict[str, Any], field: 
     assert str(caught.value).startswith(f"{field}: "), caught.value
 
 
-def test_the_risk_measure_refusal_says_what_is_implemented() -> None:
-    with pytest.raises(ValueError, match="only \\['min'\\] is implemented"):
-        check_goal(**goal(risk_measure="cvar"), limits=LIMITS)
+@pytest.mark.parametrize("mode", ["per_step", "trajectory"])
+@pytest.mark.parametrize("measure", ["min", "cvar", "mean_sd"])
+@pytest.mark.parametrize("level", [0.0, 0.5, 1.0, 2.0])
+def test_a_named_risk_is_refused_exactly_when_the_planner_refuses_it(mode: str, measure: str, level: float) -> None:
+    from ird_core.planning.risk_measures import MIN_RISK
+    from ird_ros.jobs.planning import request_risk
+
+    try:
+        request_risk(measure, level, MIN_RISK, mode)
+        planner = None
+    except ValueError as exc:
+        planner = str(exc).split(":")[0]
+    try:
+        check_goal(**goal(mode=mode, risk_measure=measure, risk_level=level), limits=LIMITS)
+        navigator = None
+    except ValueError as exc:
+        navigator = str(exc).split(":")[0]
+    assert navigator == {"risk": "risk_measure"}.get(planner, planner)
 
 
 def test_queries_refusal_names_the_limit() -> None:

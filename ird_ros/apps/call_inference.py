@@ -3,6 +3,8 @@
     ird-infer                   # a small generated map (or: .venv/bin/python scripts/call_inference.py)
     ird-infer --from-world      # the world node's training worlds + proxy
     options: --method maxent_z|sample_z  --beta 10  --num-samples 200  --seed 0  --timeout 120
+             --proxy-counts optimal|maxent  --designer-temperature 1   (the observation model)
+             --risk min|cvar|mean_sd  --risk-level 0.25   (then plan on the posterior: /ird/plan)
 
 Prints the ROS_DOMAIN_ID it searches first; with no graph there within --timeout it says so in one
 paragraph (which domain, how to set another) and exits 1.
@@ -10,7 +12,11 @@ The inference node must be running in the same ROS domain (ROS_DOMAIN_ID), e.g. 
 ``scripts/launch_graph.py --nodes inference`` (or the whole graph for --from-world; with
 ``--world FILE`` the request holds every training world of the file).
 Prints the posterior (docs/spec.md section 3): per feature the proxy weight, posterior mean and
-std; then the sampler's diagnostics (acceptance rate, largest split R-hat, smallest ESS).
+std; then the sampler's diagnostics (acceptance rate, largest split R-hat, smallest ESS) and the
+observation model used. With ``--risk``, it then asks ``/ird/plan`` (the planner node must run
+too) for a per-step plan with the posterior's samples on the request's own training map, from its
+start over its horizon (a demo: a robot plans on its test map), and prints the plan and the risk
+measure it used (docs/spec.md section 4).
 """
 
 from __future__ import annotations
@@ -22,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from ird_core.posterior import METHODS
+from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
 from ird_ros import conversions
-from ird_ros.client import ClientTimeout, IrdClient, infer_request
+from ird_ros.client import ClientTimeout, IrdClient, infer_request, plan_request
 from ird_ros.graph.domains import domain_banner
 
 
@@ -45,6 +52,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--beta", type=float, default=10.0, help="designer rationality (default 10)")
     parser.add_argument("--num-samples", type=int, default=200, help="posterior samples (default 200)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (and the generated map's)")
+    parser.add_argument("--proxy-counts", default="", choices=("", *PROXY_COUNTS),
+                        help="observation model: the proxy's optimal-path or MaxEnt counts (default: the node's)")
+    parser.add_argument("--designer-temperature", type=float, default=0.0,
+                        help="MaxEnt designer's temperature in [0.001, 1000] (default 0: the node's)")
+    parser.add_argument("--risk", default=None, choices=("", *RISK_MEASURES),
+                        help="then plan on the posterior with this risk measure (\"\": the planner's default)")
+    parser.add_argument("--risk-level", type=float, default=0.0,
+                        help="cvar's alpha in (0, 1] or mean_sd's lambda in [0, 100] (default 0: none)")
     parser.add_argument("--timeout", type=float, default=120.0,
                         help="seconds for discovery and for the answer (default 120); with no graph in "
                              "ROS_DOMAIN_ID by then, exit 1 naming the domain")
@@ -61,6 +76,23 @@ def print_posterior(post: conversions.PosteriorData) -> None:
         print(f"{name:<12} {w:>8.3f} {m:>8.3f} {s:>8.3f}")
     print(f"acceptance {post.acceptance_rate:.2f}, R-hat max {post.r_hat_max:.3f}, "
           f"ESS min {post.ess_min:.0f}" + ("" if post.converged else "  (NOT converged: R-hat > 1.1)"))
+    print(f"observation model: {post.proxy_counts or '?'} proxy counts"
+          + (f", designer temperature {post.designer_temperature:g}" if post.proxy_counts == "maxent" else ""))
+
+
+def plan_on(ird: IrdClient, request: Any, post: conversions.PosteriorData, args: argparse.Namespace) -> int:
+    """``/ird/plan`` per step on ``request``'s training map with the samples; print it; 0 or 1."""
+    plan = ird.plan(plan_request((request.start_row, request.start_col), request.horizon, "per_step", "none",
+                                 weights=post.samples, grid=request.training_map, label="call_inference",
+                                 risk=args.risk, risk_level=args.risk_level), timeout=args.timeout)
+    if not plan.ok:
+        print(f"the planner refused the request: {plan.message}", file=sys.stderr)
+        return 1
+    response = plan.response
+    level = f" {response.risk_level:g}" if response.risk != "min" else ""
+    print(f"plan ({response.risk}{level}): objective {response.objective:.4g}, cells "
+          + " ".join(f"({r},{c})" for r, c in plan.unwrap().cells))
+    return 0
 
 
 def not_found(exc: ClientTimeout, domain_id: int) -> str:
@@ -81,18 +113,19 @@ def main(argv: list[str] | None = None) -> int:
             request.beta, request.method = args.beta, args.method
             request.num_samples, request.seed = args.num_samples, args.seed
             request.prior_sigma = 0.0  # 0 = the node's default
+            request.proxy_counts, request.designer_temperature = args.proxy_counts, args.designer_temperature
             result = ird.infer(request, timeout=args.timeout)
+            if result.ok:
+                print_posterior(result.unwrap())
+                return 0 if args.risk is None else plan_on(ird, request, result.unwrap(), args)
         except ClientTimeout as exc:
             print(not_found(exc, ird.domain_id), file=sys.stderr)
             return 1
         except KeyboardInterrupt:
             print("call_inference: interrupted", file=sys.stderr)
             return 130
-    if not result.ok:
-        print(f"inference refused the request: {result.message}", file=sys.stderr)
-        return 1
-    print_posterior(result.unwrap())
-    return 0
+    print(f"inference refused the request: {result.message}", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

@@ -326,7 +326,10 @@ class IrdClient:
         return self.call_async(names.SRV_INFER, request, decode=_decode_posterior, timeout=timeout)
 
     def infer(self, request: "InferReward.Request", *, timeout: float = 300.0) -> CallResult[conv.PosteriorData]:
-        """``/ird/infer``: the IRD posterior (docs/spec.md section 3), samples as (K, d) numpy."""
+        """``/ird/infer``: the IRD posterior (docs/spec.md section 3), samples as (K, d) numpy; the
+        observation model is the request's (``infer_request(..., proxy_counts=,
+        designer_temperature=)``) and the posterior says which it used (``proxy_counts``,
+        ``designer_temperature``)."""
         return self.call(names.SRV_INFER, request, decode=_decode_posterior, timeout=timeout)
 
     def plan_async(self, request: "PlanPath.Request", *, timeout: float = 60.0) -> PendingCall[Plan]:
@@ -334,7 +337,9 @@ class IrdClient:
         return self.call_async(names.SRV_PLAN, request, decode=_decode_plan, timeout=timeout)
 
     def plan(self, request: "PlanPath.Request", *, timeout: float = 300.0) -> CallResult[Plan]:
-        """``/ird/plan``: a literal or risk-averse path (docs/spec.md section 4); Rob drives it."""
+        """``/ird/plan``: a literal or risk-averse path (docs/spec.md section 4); Rob drives it. The
+        risk measure is the request's (``plan_request(..., risk=, risk_level=)``); the raw
+        response (``result.response.risk`` / ``risk_level``) says which the plan used."""
         return self.call(names.SRV_PLAN, request, decode=_decode_plan, timeout=timeout)
 
     def propose_query(self, request: "ProposeQuery.Request", *, timeout: float = 300.0) -> CallResult[Query]:

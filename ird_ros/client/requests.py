@@ -31,10 +31,14 @@ def infer_request(
     seed: int,
     prior_sigma: float = 0.0,
     proxy_map: "FeatureGrid | None" = None,
+    proxy_counts: str = "",
+    designer_temperature: float = 0.0,
 ) -> "InferReward.Request":
     """An ``/ird/infer`` request: the proxy ``proxy_weights`` designed on ``training_map`` from
     ``start`` over ``horizon`` moves (docs/spec.md section 3); ``prior_sigma`` 0 = the node's
-    default; ``proxy_map`` the map the proxy is defined on (latent_classifier), if any."""
+    default; ``proxy_map`` the map the proxy is defined on (latent_classifier), if any; the
+    observation model ``proxy_counts`` ("optimal" or "maxent"; "" = the node's) and
+    ``designer_temperature`` (MaxEnt's; 0 = the node's)."""
     from ird_msgs.srv import InferReward
 
     request = InferReward.Request()
@@ -46,6 +50,7 @@ def infer_request(
         request.proxy_map = proxy_map
     request.beta, request.method = float(beta), str(method)
     request.num_samples, request.seed, request.prior_sigma = int(num_samples), int(seed), float(prior_sigma)
+    request.proxy_counts, request.designer_temperature = str(proxy_counts), float(designer_temperature)
     return request
 
 
@@ -59,11 +64,14 @@ def plan_request(
     reference_features: np.ndarray | Sequence[float] = (),
     grid: "FeatureGrid | None" = None,
     label: str = "",
+    risk: str = "",
+    risk_level: float = 0.0,
 ) -> "PlanPath.Request":
     """A ``/ird/plan`` request (docs/spec.md section 4): ``weights`` (K, d) or flat K*d values
     (empty: the latest posterior, or the proxy for ``literal``), ``reference_features`` the
     ``training_features`` baseline's f_ref (empty: the node's), ``grid`` the test map (None: the
-    latest perceived one)."""
+    latest perceived one), ``risk`` the measure over the samples ("min", "cvar", "mean_sd"; "" =
+    the planner's) at ``risk_level`` (cvar's alpha, mean_sd's lambda; 0 = none / the planner's)."""
     from ird_msgs.srv import PlanPath
 
     request = PlanPath.Request()
@@ -72,6 +80,7 @@ def plan_request(
     request.start_row, request.start_col = (int(v) for v in start)
     request.horizon = int(horizon)
     request.mode, request.baseline, request.label = str(mode), str(baseline), label
+    request.risk, request.risk_level = str(risk), float(risk_level)
     request.weights = np.asarray(weights, dtype=np.float64).ravel().tolist()
     request.reference_features = np.asarray(reference_features, dtype=np.float64).ravel().tolist()
     return request

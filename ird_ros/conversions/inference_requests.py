@@ -8,7 +8,9 @@ stages, each refusing with a ``ValueError`` whose message starts with the field'
    all maps together against ``max_request_values``; proxy weights (one per layer) against
    ``max_map_values``; ``horizon`` (and each world's) in ``[1, max_horizon]``; ``num_samples`` up to
    ``max_num_samples``; ``method``; then the work model (:func:`ird_ros.jobs.work.check_inference_work`
-   against ``max_inference_work``) and one MDP pass's memory against the worker's memory.
+   against ``max_inference_work``) and one MDP pass's memory against the worker's memory; then the
+   observation model (``proxy_counts``, ``designer_temperature``; "" and 0 = the node's
+   parameters) by :func:`ird_ros.jobs.inference.observation_model`.
 2. Decoding (``conversions.feature_grid_from_msg``): layers, lengths, finite values, ``|value| <=
    MAX_ABS_FEATURE``, matching grids, start cells.
 3. The library's argument checks (``checks.check_posterior_arguments``, ``GridMDP``); each training
@@ -28,11 +30,11 @@ from ird_core import checks
 from ird_core import planning as core_planning
 from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT
 from ird_core.mdp import GridMDP
-from ird_core.posterior import SamplerSettings
+from ird_core.posterior import DEFAULT_OBSERVATION_MODEL, ObservationModel, SamplerSettings
 from ird_core.vocabulary import ZMethod, parse
 from ird_ros.conversions.grids import FeatureGridData, feature_grid_from_msg
 from ird_ros.conversions.sizes import check_grid_size, grid_is_empty
-from ird_ros.jobs.inference import ExtraWorld, InferenceJob
+from ird_ros.jobs.inference import ExtraWorld, InferenceJob, observation_model
 from ird_ros.jobs.work import WorldSize, check_inference_work
 
 __all__ = ["InferenceLimits", "infer_job", "check_pass_memory"]
@@ -41,7 +43,8 @@ __all__ = ["InferenceLimits", "infer_job", "check_pass_memory"]
 @dataclass(frozen=True)
 class InferenceLimits:
     """The inference node's request limits (its parameters of the same names; ``memory_limit``
-    in bytes, 0 = none) and the settings a job is built with."""
+    in bytes, 0 = none) and the settings a job is built with (``observation_model``: the node's
+    ``proxy_counts`` and ``designer_temperature``, for requests that leave them unset)."""
 
     max_num_samples: int
     max_horizon: int
@@ -52,6 +55,7 @@ class InferenceLimits:
     memory_limit: int
     default_prior_sigma: float
     sampler: SamplerSettings
+    observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL
 
 
 def check_pass_memory(field: str, height: int, width: int, horizon: int, bytes_per_cell: int,
@@ -149,6 +153,7 @@ def infer_job(req: Any, limits: InferenceLimits) -> tuple[InferenceJob, tuple[st
         ValueError: naming the request field (module doc: sizes, decoding, the library's checks).
     """
     _check_sizes(req, limits)
+    model = observation_model(req.proxy_counts, float(req.designer_temperature), limits.observation_model)
     train, proxy, start = _world_maps("", req)
     d = train.shape[2]
     prior_sigma = float(limits.default_prior_sigma) if req.prior_sigma == 0.0 else float(req.prior_sigma)
@@ -168,5 +173,6 @@ def infer_job(req: Any, limits: InferenceLimits) -> tuple[InferenceJob, tuple[st
         sampler=limits.sampler,
         extra_worlds=tuple(_training_world(i, world, train.layers, weights)
                            for i, world in enumerate(req.training_worlds)),
+        observation_model=model,
     )
     return job, train.layers

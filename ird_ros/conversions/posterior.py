@@ -2,7 +2,10 @@
 
 Part of :mod:`ird_ros.conversions` (import that). A posterior's ``converged`` flag on the wire is
 the sampler's verdict ``r_hat_max <= ird_core.posterior.R_HAT_CONVERGED`` (docs/spec.md
-section 3); every function raises ``ValueError`` naming the offending field.
+section 3); every function raises ``ValueError`` naming the offending field. The observation model
+a posterior was sampled with travels as ``proxy_counts`` ("optimal" or "maxent") and
+``designer_temperature`` (finite, in [0.001, 1000]); "" and 0 mean "not recorded" (a posterior
+built by hand or recorded before the fields existed) and are read back as they are.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from typing import Any, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from ird_core.vocabulary import ZMethod, parse
+from ird_core.vocabulary import PROXY_COUNTS, ZMethod, parse
 from ird_msgs.msg import RewardPosterior
 from ird_ros.conversions.grids import MAP_FRAME, _as_float_array, _check_finite, _check_names, _f, _read, make_header
 
@@ -32,7 +35,8 @@ class PosteriorData:
 
     Has the attributes of ``ird_core.posterior.Posterior`` (samples, method, beta,
     acceptance_rate, r_hat_max, ess_min, prior_sigma, num_chains, seed), so it can be
-    passed back to ``posterior_to_msg``.
+    passed back to ``posterior_to_msg``, and the observation model it was sampled with
+    (``proxy_counts`` "" and ``designer_temperature`` 0: not recorded).
     """
 
     samples: np.ndarray
@@ -47,6 +51,8 @@ class PosteriorData:
     num_chains: int
     seed: int
     converged: bool
+    proxy_counts: str = ""
+    designer_temperature: float = 0.0
 
 
 # --------------------------------------------------------------------------- weights
@@ -98,6 +104,7 @@ def posterior_to_msg(
     proxy_weights: np.ndarray,
     stamp: Time | None = None,
     frame_id: str = MAP_FRAME,
+    observation_model: Any = None,
 ) -> RewardPosterior:
     """Build an ``ird_msgs/RewardPosterior`` from any object with the attributes of
     ``ird_core.posterior.Posterior``: ``samples`` (K, d), ``method``, ``beta``,
@@ -106,7 +113,11 @@ def posterior_to_msg(
     ``feature_names`` has d entries; ``proxy_weights`` has shape (p,), p = d unless the
     proxy was defined on a proxy map with its own layers (InferReward.proxy_map). ``r_hat_max`` and
     ``ess_min`` may be NaN (not computed); ``converged`` is set to
-    ``r_hat_max <= ird_core.posterior.R_HAT_CONVERGED``.
+    ``r_hat_max <= ird_core.posterior.R_HAT_CONVERGED``. ``observation_model`` (an
+    ``ird_core.posterior.ObservationModel``: its ``counts`` and ``temperature``) fills
+    ``proxy_counts`` and ``designer_temperature``; ``None`` copies the posterior's own
+    ``proxy_counts`` / ``designer_temperature`` attributes (a ``PosteriorData``), else "" and 0
+    (not recorded).
     """
     # Imported here: ird_core.posterior loads scipy, which nodes that never publish a posterior
     # (rob, the recorder) should not pay for at start-up.
@@ -126,6 +137,12 @@ def posterior_to_msg(
     msg.header = make_header(stamp, frame_id)
     msg.feature_names = list(names)
     _fill_sampler_fields(msg, posterior, field)
+    if observation_model is not None:
+        counts, temperature = observation_model.counts, observation_model.temperature
+    else:
+        counts = getattr(posterior, "proxy_counts", "")
+        temperature = getattr(posterior, "designer_temperature", 0.0)
+    msg.proxy_counts, msg.designer_temperature = _check_observation_model(field, counts, temperature)
     msg.proxy_weights = array.array("d", proxy.tobytes())
     msg.samples = array.array("d", np.ascontiguousarray(samples).tobytes())
     msg.num_samples = int(samples.shape[0])
@@ -156,6 +173,19 @@ def _fill_sampler_fields(msg: RewardPosterior, posterior: Any, field: str) -> No
     msg.r_hat_max, msg.ess_min, msg.num_chains = r_hat, ess, num_chains
 
 
+def _check_observation_model(field: str, counts: Any, temperature: Any) -> tuple[str, float]:
+    """``(proxy_counts, designer_temperature)`` checked: one of ``PROXY_COUNTS`` or "", and a
+    temperature in [0.001, 1000] or 0 (not recorded); ``ValueError`` naming ``<field>.<name>``."""
+    if counts not in ("", *PROXY_COUNTS):
+        raise _f(f"{field}.proxy_counts", f"expected one of {list(PROXY_COUNTS)} or \"\" (not recorded), "
+                                          f"got {counts!r}")
+    t = float(temperature)
+    if not (t == 0.0 or 1e-3 <= t <= 1e3):  # False for NaN
+        raise _f(f"{field}.designer_temperature", f"expected 0 (not recorded) or a value in [0.001, 1000], "
+                                                  f"got {temperature!r}")
+    return str(counts), t
+
+
 def _check_diagnostic(field: str, value: Any) -> float:
     """An MCMC diagnostic: a finite value >= 0, or NaN (not computed)."""
     v = float(value)
@@ -178,6 +208,7 @@ def posterior_from_msg(msg: RewardPosterior, *, field: str = "RewardPosterior") 
     method = _check_method(f"{field}.method", msg.method)
     if not math.isfinite(msg.beta) or msg.beta < 0.0:
         raise _f(f"{field}.beta", f"must be finite and >= 0, got {msg.beta!r}")
+    counts, temperature = _check_observation_model(field, msg.proxy_counts, msg.designer_temperature)
     return PosteriorData(
         samples=samples,
         feature_names=names,
@@ -191,4 +222,6 @@ def posterior_from_msg(msg: RewardPosterior, *, field: str = "RewardPosterior") 
         num_chains=int(msg.num_chains),
         seed=int(msg.seed),
         converged=bool(msg.converged),
+        proxy_counts=counts,
+        designer_temperature=temperature,
     )

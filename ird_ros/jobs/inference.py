@@ -36,6 +36,14 @@ Several training worlds (docs/spec.md section 7): each extra world is one more
 Re-sampling with answers: ``sample_joint_posterior([proxies] + answers, ..., seed=
 resample_seed(seed, n), initial=<current posterior>)`` (a warm start, with the library's own
 short warm-up).
+
+The observation model (docs/spec.md section 3): every call above gets
+``observation_model=job.observation_model`` (an ``ird_core.posterior.ObservationModel`` built by
+:func:`observation_model` from the request's ``proxy_counts`` and ``designer_temperature``), and
+the proxy observations that carry their own counts (a proxy map) are built with the same model,
+so ``phi~``, Sample-Z's ``phi_i`` and its own term agree. A :class:`ResampleJob` re-samples with
+its ``base`` job's model: the model of the posterior it extends. Sample-Z's own term is the
+library's default (``ObservationModel().own_term``): an experiment control, not a ROS field.
 """
 
 from __future__ import annotations
@@ -47,11 +55,31 @@ import numpy as np
 
 from ird_core import posterior as core_inference
 from ird_core.mdp import GridMDP
-from ird_core.posterior import RunUntil, SamplerSettings
+from ird_core.posterior import DEFAULT_OBSERVATION_MODEL, ObservationModel, RunUntil, SamplerSettings
 from ird_core.vocabulary import ZMethod
 
-__all__ = ["sampler_settings", "ExtraWorld", "InferenceJob", "ResampleJob", "world_observation", "job_observations",
-           "run_inference", "run_resample"]
+__all__ = ["sampler_settings", "observation_model", "ExtraWorld", "InferenceJob", "ResampleJob", "world_observation",
+           "job_observations", "run_inference", "run_resample"]
+
+#: ``ObservationModel``'s field names -> the request's (``ValueError`` messages name the latter).
+_MODEL_FIELDS = {"counts": "proxy_counts", "temperature": "designer_temperature"}
+
+
+def observation_model(proxy_counts: str, designer_temperature: float,
+                      default: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> ObservationModel:
+    """The request's observation model: ``proxy_counts`` "" and ``designer_temperature`` 0 take
+    ``default``'s (the node's parameters); the own term is ``default``'s.
+
+    Raises:
+        ValueError: starting with ``proxy_counts`` or ``designer_temperature`` (the library's check).
+    """
+    counts = proxy_counts or default.counts
+    temperature = default.temperature if designer_temperature == 0.0 else designer_temperature
+    try:
+        return ObservationModel(counts, temperature, default.own_term)
+    except ValueError as exc:
+        name, rest = str(exc).split(":", 1)
+        raise ValueError(f"{_MODEL_FIELDS.get(name, name)}:{rest}") from None
 
 
 def sampler_settings(values: dict[str, Any]) -> SamplerSettings:
@@ -99,6 +127,7 @@ class InferenceJob:
         beta, method, num_samples, seed, prior_sigma: as sample_posterior.
         sampler: the node's sampler settings.
         extra_worlds: the request's ``training_worlds`` (each one more ProxyObservation).
+        observation_model: how every world's proxy behaviour is counted (module doc).
     """
 
     train_mdp: GridMDP
@@ -111,6 +140,7 @@ class InferenceJob:
     prior_sigma: float
     sampler: SamplerSettings
     extra_worlds: tuple[ExtraWorld, ...] = ()
+    observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL
 
 
 def _num_proxy_samples(job: InferenceJob) -> int:
@@ -121,16 +151,18 @@ def _num_proxy_samples(job: InferenceJob) -> int:
 def world_observation(job: InferenceJob, world: ExtraWorld) -> core_inference.ProxyObservation:
     """The ProxyObservation of one training world of ``job``.
 
-    Without a proxy map the library computes ``phi~(w~)`` itself; with one,
-    ``ird_core.posterior.proxy_observation`` plans the proxy on the proxy map (and, for Sample-Z,
-    the prior proxies drawn with the job's ``seed``, so every world plans the same ones).
+    Without a proxy map the library computes ``phi~(w~)`` itself (with the sampler's
+    ``observation_model``); with one, ``ird_core.posterior.proxy_observation`` plans the proxy on
+    the proxy map under ``job.observation_model`` (and, for Sample-Z, the prior proxies drawn with
+    the job's ``seed``, so every world plans the same ones).
     """
     if world.proxy_mdp is None:
         return core_inference.ProxyObservation(world.proxy_weights, world.train_mdp)
     sample_z = job.method == ZMethod.SAMPLE_Z
     return core_inference.proxy_observation(
         world.train_mdp, world.proxy_weights, proxy_mdp=world.proxy_mdp,
-        num_proxy_samples=_num_proxy_samples(job) if sample_z else None, seed=job.seed, prior_sigma=job.prior_sigma)
+        num_proxy_samples=_num_proxy_samples(job) if sample_z else None, seed=job.seed, prior_sigma=job.prior_sigma,
+        observation_model=job.observation_model)
 
 
 def job_observations(job: InferenceJob) -> list[core_inference.ProxyObservation]:
@@ -144,6 +176,7 @@ def run_inference(job: InferenceJob) -> core_inference.Posterior:
     """The worker-process job: ``sample_posterior`` on a validated request (see the module doc);
     with ``training_worlds``, ``sample_joint_posterior`` on :func:`job_observations`."""
     kwargs: dict[str, Any] = job.sampler.kwargs()
+    kwargs["observation_model"] = job.observation_model
     if job.extra_worlds:
         return core_inference.sample_joint_posterior(job_observations(job), job.beta, job.method, job.num_samples,
                                                      job.seed, job.prior_sigma, **kwargs)
@@ -168,9 +201,11 @@ class ResampleJob:
 
 
 def run_resample(job: ResampleJob) -> core_inference.Posterior:
-    """The worker-process job of /ird/answer: ``sample_joint_posterior`` on all the evidence."""
+    """The worker-process job of /ird/answer: ``sample_joint_posterior`` on all the evidence, with
+    the observation model of ``base`` (the posterior being extended)."""
     base = job.base
     kwargs: dict[str, Any] = base.sampler.kwargs()
+    kwargs["observation_model"] = base.observation_model
     kwargs.pop("warmup", None)  # a warm start has its own short warm-up (the library's default)
     proxies = job_observations(base)
     return core_inference.sample_joint_posterior(

@@ -3,7 +3,9 @@ docs/spec.md section 7).
 
 :class:`WorldEvidence` holds what the posterior is conditioned on: the proxy observation of the
 latest successful ``/ird/infer`` (its validated job) and every answer taken since, with the
-latest posterior (the warm start of the next re-sampling) and the open queries.
+latest posterior (the warm start of the next re-sampling) and the open queries. The job carries
+the observation model its posterior was sampled with (:attr:`WorldEvidence.observation_model`);
+every re-sampling of this evidence uses that model, never the node's current default.
 
 Lifetime (what "the current world" means):
 
@@ -108,6 +110,11 @@ class WorldEvidence:
     next_id: int = 1
     resampling: bool = False
     last_proxy_stamp: tuple[int, int] | None = None
+
+    @property
+    def observation_model(self) -> core_inference.ObservationModel | None:
+        """The observation model of the evidence's posterior (``None``: no evidence)."""
+        return None if self.job is None else self.job.observation_model
 
     def reset(self, job: InferenceJob, posterior: core_inference.Posterior, feature_names: tuple[str, ...],
               world_stamp: tuple[int, int]) -> None:

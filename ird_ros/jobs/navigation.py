@@ -10,9 +10,13 @@ Invariants:
   inference service's (``beta`` in ``ird_core.checks.BETA_RANGE``, ``num_samples`` up to the
   navigator's ``max_num_samples``) and the planner's (``mode`` / ``baseline`` through
   ``ird_core.planning.check_plan_arguments``).
-- Risk measures: only ``min`` is implemented: the per-sample worst case of the posterior samples,
-  per step or per trajectory as ``mode`` says (docs/spec.md section 4). Any other measure (e.g.
-  ``cvar``) is refused naming ``risk_measure``, and ``min`` takes no level (``risk_level`` 0).
+- Risk measures (docs/spec.md section 4): ``risk_measure`` is passed to ``/ird/plan`` as its
+  ``risk`` and ``risk_level`` as its ``risk_level``. "" is the planner's default (its parameters;
+  ``CheckedGoal.risk_measure`` None), its level only checked to be finite in ``[0, MAX_LAMBDA]``
+  here (the planner checks it against its default measure). A named measure is checked as the
+  planner checks it (:func:`ird_ros.jobs.planning.request_risk`: ``min`` with level 0, ``cvar``'s
+  alpha in (0, 1], ``mean_sd``'s lambda in [0, 100] and never with ``trajectory``), refusals
+  naming ``risk_measure`` or ``risk_level``.
 - A :class:`DriveTracker` follows Rob's statuses of ONE plan (matched by the plan's stamp key):
   the driven cells are the plan's cells up to the last step Rob reported, start cell first; the
   drive is over at the first status with ``done`` (finished or ``stopped``).
@@ -32,9 +36,11 @@ import numpy as np
 
 from ird_core import planning
 from ird_core.checks import MAX_TEXT_LENGTH, check_real
-from ird_core.vocabulary import Baseline, PlanMode, ZMethod, parse, values
+from ird_core.planning.risk_measures import MAX_LAMBDA, MIN_RISK
+from ird_core.vocabulary import RISK_MEASURES, Baseline, PlanMode, RiskMeasure, ZMethod, parse
 from ird_core.worlds.evaluation import evaluate_path
 from ird_ros.jobs.ground_truth import evaluation_terrain
+from ird_ros.jobs.planning import request_risk
 
 __all__ = [
     "NavigationStatus",
@@ -77,15 +83,6 @@ class Stage(StrEnum):
     DRIVING = "driving"
 
 
-class RiskMeasure(StrEnum):
-    """Risk measures over the posterior samples; only the worst case is implemented."""
-
-    MIN = "min"
-
-
-RISK_MEASURES: tuple[str, ...] = values(RiskMeasure)
-
-
 @dataclass(frozen=True)
 class GoalLimits:
     """The navigator's parameters a goal is checked against and defaulted from."""
@@ -98,7 +95,8 @@ class GoalLimits:
 
 @dataclass(frozen=True)
 class CheckedGoal:
-    """A validated goal with its defaults filled in (``method`` None = the current posterior)."""
+    """A validated goal with its defaults filled in (``method`` None = the current posterior;
+    ``risk_measure`` None = the planner's default measure, ``risk_level`` then passed as given)."""
 
     method: ZMethod | None
     beta: float
@@ -106,7 +104,7 @@ class CheckedGoal:
     seed: int
     mode: PlanMode
     baseline: Baseline
-    risk_measure: RiskMeasure
+    risk_measure: RiskMeasure | None
     risk_level: float
     queries: int
     label: str
@@ -136,12 +134,7 @@ def check_goal(*, method: object, beta: object, num_samples: object, seed: objec
     samples = _integer("num_samples", num_samples, 0, limits.max_num_samples, "max_num_samples")
     seed_value = _integer("seed", seed, 0, 2**32 - 1)
     planning.check_plan_arguments(mode, baseline)  # ValueError naming mode or baseline
-    if risk_measure not in ("", *RISK_MEASURES):
-        raise ValueError(f"risk_measure: only {list(RISK_MEASURES)} is implemented (the per-sample worst case, "
-                         f"per step or per trajectory by mode), got {risk_measure!r}")
-    level = check_real("risk_level", risk_level, positive=False)
-    if level != 0.0:
-        raise ValueError(f"risk_level: the 'min' measure takes no level; expected 0, got {level:g}")
+    measure, level = _checked_risk(risk_measure, risk_level, mode)
     asked = _integer("queries", queries, 0, limits.max_queries, "max_queries")
     if not isinstance(label, str):
         raise ValueError(f"label: expected a string, got {label!r}")
@@ -154,11 +147,28 @@ def check_goal(*, method: object, beta: object, num_samples: object, seed: objec
         seed=seed_value,
         mode=PlanMode(mode),
         baseline=Baseline(baseline),
-        risk_measure=RiskMeasure.MIN,
-        risk_level=0.0,
+        risk_measure=measure,
+        risk_level=level,
         queries=asked,
         label=label or DEFAULT_LABEL,
     )
+
+
+def _checked_risk(risk_measure: object, risk_level: object, mode: object) -> tuple[RiskMeasure | None, float]:
+    """The goal's measure (None = the planner's default) and level as ``/ird/plan`` will get
+    them (module doc); ``ValueError`` naming ``risk_measure`` or ``risk_level``."""
+    if risk_measure != "" and risk_measure not in RISK_MEASURES:
+        raise ValueError(f"risk_measure: expected one of {list(RISK_MEASURES)} or \"\" (the planner's default), "
+                         f"got {risk_measure!r}")
+    level = check_real("risk_level", risk_level, positive=False, ranged=False)
+    if level > MAX_LAMBDA:
+        raise ValueError(f"risk_level: {level:g} is outside [0, {MAX_LAMBDA:g}] (cvar's alpha <= 1, mean_sd's "
+                         f"lambda <= {MAX_LAMBDA:g})")
+    if risk_measure == "":
+        return None, level
+    assert isinstance(risk_measure, str)
+    request_risk(risk_measure, level, MIN_RISK, mode, fields=("risk_measure", "risk_level"))
+    return RiskMeasure(risk_measure), level
 
 
 def posterior_summary(method: str, num_samples: int, r_hat_max: float, converged: bool = True,

@@ -16,12 +16,13 @@ Records stamped before the current ``/world/terrain`` belong to a forgotten worl
   ``answered_by: "simulated"``. A ``busy`` refusal is retried after ``retry_period``; any other
   refusal (a forgotten world's query) is final.
 - ``mode: web``: ``ird_ros.web.server.WebDesigner`` serves a page on ``host:port`` in its own
-  thread; the node forwards proposals, answers, the world and the posterior/risk map to it and
+  thread; the node forwards proposals, answers, the world, the posterior/risk map and the risk
+  measure of the current plan (the latest ``/ird/plan_info`` of this world) to it and
   its clicks come back through ``on_answer(query_id, chosen)``, which calls ``/ird/answer``
   (``answered_by: "web"``) with ``Client.call`` from the web server's thread (the executor keeps
   spinning in the main thread and completes the call). Contract: the dicts of
   :mod:`ird_ros.bags.rounds` (``record_dict``) and :func:`world_dict`, :func:`posterior_dict`,
-  :func:`risk_dict` here.
+  :func:`risk_dict` and :func:`plan_dict` here.
 
 The node never blocks an executor callback: simulated answers are ``call_async`` with a done
 callback. Every callback runs in ``ird_ros.runtime.guard``'s guard: whatever a message raises is
@@ -39,18 +40,20 @@ from nav_msgs.msg import OccupancyGrid
 
 from ird_core.designer.queries import SimulatedDesigner
 from ird_core.vocabulary import QueryEvent, values
-from ird_msgs.msg import ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
+from ird_msgs.msg import PlanInfo, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
 from ird_msgs.srv import AnswerQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
+from ird_ros.jobs.planning import risk_text
 from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import BUSY_PREFIX, service_qos
 from ird_ros.stamps import stamp_ns, stamp_seconds
 
-__all__ = ["DesignerNode", "DesignerMode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict", "main"]
+__all__ = ["DesignerNode", "DesignerMode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict",
+           "plan_dict", "main"]
 
 class DesignerMode(StrEnum):
     """Who answers: the node itself on the true returns, or a person on the web page."""
@@ -95,10 +98,21 @@ def posterior_dict(post: conv.PosteriorData, num_answers: int, stamp: float) -> 
             "r_hat_max": float(post.r_hat_max) if np.isfinite(post.r_hat_max) else None, "stamp": stamp}
 
 
-def risk_dict(costs: np.ndarray, stamp: float) -> dict[str, Any]:
-    """The page's risk map: ``values[row][col]`` in 0..100 (-1 unknown)."""
+def risk_dict(costs: np.ndarray, stamp: float, plan: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The page's risk map: ``values[row][col]`` in 0..100 (-1 unknown) and ``plan``, what the
+    current plan maximised (:func:`plan_dict`, ``None``: no plan of this world yet). The map is the
+    samples' reward spread whatever the plan's measure."""
     h, w = costs.shape
-    return {"height": h, "width": w, "values": costs.astype(int).tolist(), "stamp": stamp}
+    return {"height": h, "width": w, "values": costs.astype(int).tolist(), "stamp": stamp, "plan": plan}
+
+
+def plan_dict(info: PlanInfo) -> dict[str, Any]:
+    """The page's plan line: label, mode, baseline, risk measure and level, and ``text``, e.g.
+    ``"per-step CVaR alpha=0.25"`` (:func:`ird_ros.jobs.planning.risk_text`)."""
+    level = float(info.risk_level)
+    return {"label": info.label, "mode": info.mode, "baseline": info.baseline, "risk": info.risk,
+            "risk_level": level if np.isfinite(level) else None,
+            "text": risk_text(info.mode, info.risk, level), "stamp": stamp_seconds(info.header.stamp)}
 
 
 class DesignerNode(GuardedNode):
@@ -116,6 +130,7 @@ class DesignerNode(GuardedNode):
         self.proxy: ProxyReward | None = None
         self.posterior: RewardPosterior | None = None
         self.risk: OccupancyGrid | None = None
+        self.plan_info: PlanInfo | None = None
         self._in_flight: set[tuple[int, int]] = set()  # (query_id, proposal stamp) being answered
         self._done: set[tuple[int, int]] = set()  # answered by us, or refused for good
         self._shown: set[tuple[int, str, int]] = set()  # (query id, event, stamp) forwarded to the page
@@ -133,6 +148,7 @@ class DesignerNode(GuardedNode):
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
         self.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self._on_risk, latched)
+        self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_plan_info, latched)
         self._retry_timer = self.create_timer(self.retry_period, self._update)
         # A (re)started designer receives the whole latched history as one burst: a proposal is
         # judged open only once the burst is in (no record for HISTORY_SETTLE seconds), or an
@@ -174,6 +190,18 @@ class DesignerNode(GuardedNode):
     def _on_risk(self, msg: OccupancyGrid) -> None:
         self.risk = msg
         self._show_posterior()
+
+    def _on_plan_info(self, msg: PlanInfo) -> None:
+        self.plan_info = msg
+        self._show_posterior()
+
+    def current_plan(self) -> dict[str, Any] | None:
+        """:func:`plan_dict` of the latest plan made in the current world (stamped at or after
+        its terrain), else ``None``."""
+        info = self.plan_info
+        if info is None or self.terrain is None or stamp_ns(info.header.stamp) < self.terrain_ns:
+            return None
+        return plan_dict(info)
 
     def events(self) -> list[qr.QueryRecordData]:
         """The decoded records of the current world (needs the terrain's geometry to map poses to
@@ -258,7 +286,7 @@ class DesignerNode(GuardedNode):
         try:
             post = conv.posterior_from_msg(self.posterior, field=names.TOPIC_POSTERIOR)
             risk = None if self.risk is None else risk_dict(conv.occupancy_grid_from_msg(self.risk),
-                                                            stamp_seconds(self.risk.header.stamp))
+                                                            stamp_seconds(self.risk.header.stamp), self.current_plan())
         except ValueError as exc:
             self.get_logger().error(f"ignoring a bad posterior or risk map: {exc}")
             return

@@ -26,6 +26,14 @@ spent after ... iterations per chain, R-hat ... (target <= 1.05), ESS ... (targe
 posterior message's ``converged`` is the sampler's verdict (with ``until_converged`` its target,
 stricter than ``ird_core.posterior.R_HAT_CONVERGED``).
 
+The observation model (docs/spec.md section 3): ``proxy_counts`` "" and ``designer_temperature``
+0 take the parameters ``proxy_counts`` and ``designer_temperature`` (defaults: the library's
+``ObservationModel()``); a bad value is refused naming the field. The model is passed to every
+library call of the request, recorded in the posterior message (``proxy_counts``,
+``designer_temperature``) and kept with the evidence: ``/ird/answer`` re-samples with the model
+of the posterior it extends. Sample-Z's own term stays the library's default (an experiment
+control, not a service field).
+
 The proxy map (latent_classifier): with ``proxy_map`` non-empty, the proxy weights apply to
 ``proxy_map``'s layers (same grid as ``training_map``).
 
@@ -76,19 +84,20 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from ird_core import planning as core_planning
 from ird_core.checks import MAX_ABS_FEATURE, PRIOR_SIGMA_RANGE
 from ird_core.mdp import GridMDP
-from ird_core.posterior import Posterior
-from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
+from ird_core.posterior import ObservationModel, Posterior
+from ird_core.vocabulary import PROXY_COUNTS, QueryEvent, QueryStrategy, parse
 from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior
 from ird_msgs.srv import AnswerQuery, InferReward, ProposeQuery
 from ird_ros import conversions as conv
 from ird_ros.conversions.inference_requests import InferenceLimits, check_pass_memory, infer_job
 from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
 from ird_ros.graph import names
-from ird_ros.jobs.inference import InferenceJob, ResampleJob, run_inference, run_resample, sampler_settings
+from ird_ros.jobs.inference import (InferenceJob, ResampleJob, observation_model, run_inference, run_resample,
+                                    sampler_settings)
 from ird_ros.jobs.inference_queries import ProposalRecord, QueryJob, WorldEvidence, resample_seed, run_query
 from ird_ros.jobs.work import check_query_work
 from ird_ros.runtime.guard import GuardedNode
-from ird_ros.runtime.node_main import Arrivals, exit_process, run_node
+from ird_ros.runtime.node_main import Arrivals, StartupError, exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import BUSY_PREFIX, Offload, OffloadError, service_qos
 from ird_ros.stamps import stamp_key
@@ -108,6 +117,11 @@ class _MapMissing(ValueError):
 PARAMETERS: dict[str, Param] = {
     "default_prior_sigma": Param(1.0, "Prior standard deviation used when a request has prior_sigma 0",
                                  min_value=PRIOR_SIGMA_RANGE[0], max_value=PRIOR_SIGMA_RANGE[1]),
+    "proxy_counts": Param(ObservationModel().counts, "Observation model of a request with proxy_counts \"\": "
+                                                     "optimal (optimal-path counts) | maxent", choices=PROXY_COUNTS),
+    "designer_temperature": Param(ObservationModel().temperature, "MaxEnt designer's temperature of a request with "
+                                                                  "designer_temperature 0", min_value=1e-3,
+                                  max_value=1e3),
     # The sampler settings are passed to sample_posterior only when set (see ird_core.posterior.SamplerSettings).
     "num_chains": Param(0, "MCMC chains run as one batch (0 = the library's default)", min_value=0,
                         max_value=100000),
@@ -163,12 +177,12 @@ def _record_msg(query_id: int, record: ProposalRecord, event: QueryEvent,
         information_gain=record.information_gain, num_answers=num_answers, stamp=stamp, **answer)
 
 
-def _publish_result(node: "InferenceNode", posterior: Posterior, layers: tuple[str, ...],
-                    proxy_weights: np.ndarray) -> RewardPosterior:
-    """The posterior as a message stamped now, with the sampler's own ``converged`` verdict
-    (``ValueError`` if it does not fit a message)."""
-    msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=proxy_weights,
-                                stamp=conv.now_stamp(node))
+def _publish_result(node: "InferenceNode", posterior: Posterior, job: InferenceJob,
+                    layers: tuple[str, ...]) -> RewardPosterior:
+    """The posterior of ``job`` as a message stamped now, with the sampler's own ``converged``
+    verdict and the job's observation model (``ValueError`` if it does not fit a message)."""
+    msg = conv.posterior_to_msg(posterior, feature_names=layers, proxy_weights=job.proxy_weights,
+                                stamp=conv.now_stamp(node), observation_model=job.observation_model)
     msg.converged = posterior.converged
     return msg
 
@@ -180,11 +194,15 @@ class InferenceNode(GuardedNode):
         self.max_horizon, self.max_map_values = p["max_horizon"], p["max_map_values"]
         self.max_query_work, self.memory_limit = float(p["max_query_work"]), int(p["worker_memory_mb"]) * 2**20
         self.sampler = sampler_settings(p)
+        try:
+            model = observation_model(p["proxy_counts"], float(p["designer_temperature"]))
+        except ValueError as exc:
+            raise StartupError(f"parameter {exc}") from None
         self.limits = InferenceLimits(
             max_num_samples=p["max_num_samples"], max_horizon=p["max_horizon"], max_map_values=p["max_map_values"],
             max_training_worlds=p["max_training_worlds"], max_request_values=p["max_request_values"],
             max_inference_work=float(p["max_inference_work"]), memory_limit=self.memory_limit,
-            default_prior_sigma=float(p["default_prior_sigma"]), sampler=self.sampler)
+            default_prior_sigma=float(p["default_prior_sigma"]), sampler=self.sampler, observation_model=model)
         if p["worker_threads"] > 0:
             # Read by numpy's BLAS when the spawned worker imports it (the node's numpy is loaded).
             for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -238,7 +256,7 @@ class InferenceNode(GuardedNode):
             return response
         try:
             posterior = await self._offload.run(self.executor, run_inference, job)
-            msg = _publish_result(self, posterior, layers, job.proxy_weights)
+            msg = _publish_result(self, posterior, job, layers)
         except OffloadError as exc:
             response.success, response.message = False, str(exc)
             return response
@@ -250,7 +268,10 @@ class InferenceNode(GuardedNode):
         self.evidence.reset(job, posterior, layers, stamp_key(req.training_map.header.stamp))
         response.success = True
         response.posterior = msg
-        response.message = (f"{posterior.method}: {posterior.num_samples} samples, acceptance "
+        model = job.observation_model
+        response.message = (f"{posterior.method} ({model.counts} proxy counts"
+                            + (f", designer temperature {model.temperature:g}" if not model.optimal else "")
+                            + f"): {posterior.num_samples} samples, acceptance "
                             f"{posterior.acceptance_rate:.2f}, {posterior.diagnosis()}")
         self.get_logger().info(response.message)
         return response
@@ -369,7 +390,7 @@ class InferenceNode(GuardedNode):
         epoch, ev.resampling = ev.epoch, True
         try:
             posterior = await self._offload.run(self.executor, run_resample, job)
-            msg = _publish_result(self, posterior, layers, base.proxy_weights)
+            msg = _publish_result(self, posterior, base, layers)
         except (OffloadError, ValueError) as exc:
             response.success, response.message = False, f"the answer was not taken: {exc}"
             return response

@@ -13,8 +13,9 @@ A goal runs, in order (feedback ``stage`` names the step):
    so) and the re-sampled posterior of that answer on ``/ird/posterior``. The questions are asked
    before Rob drives, so the one plan he drives uses every answer.
 3. ``planning``: ``/ird/plan`` from ``/world/proxy``'s test start and horizon with the goal's
-   ``mode`` and ``baseline`` and the posterior's samples as explicit weights (the proxy for
-   ``literal``); the planner publishes ``/plan`` and Rob starts driving it.
+   ``mode``, ``baseline``, ``risk_measure`` (as ``risk``; "" = the planner's default) and
+   ``risk_level``, and the posterior's samples as explicit weights (the proxy for ``literal``);
+   the planner publishes ``/plan`` and Rob starts driving it.
 4. ``driving``: Rob's ``/rob/status`` for that plan's stamp (feedback: his cell and pose,
    ``progress`` = fraction of the plan driven) until ``done``; no status for ``rob_timeout`` s:
    aborted.
@@ -29,7 +30,8 @@ Choices (docs/spec.md section 6):
   (no pre-emption); the client reports it as rejected because a goal is active.
 - A goal with a bad field (:func:`ird_ros.jobs.navigation.check_goal`: ``method`` not a ZMethod
   nor "", ``beta`` / ``num_samples`` out of range, ``mode`` / ``baseline`` unknown, ``risk_measure``
-  other than ``min``, ``queries`` < 0 or > ``max_queries``, ``label`` longer than
+  / ``risk_level`` that the planner would refuse (unknown measure, a level out of its range,
+  ``mean_sd`` with ``trajectory``), ``queries`` < 0 or > ``max_queries``, ``label`` longer than
   ``ird_core.checks.MAX_TEXT_LENGTH``) is accepted and finished at once, before any work, with
   result status ``rejected`` and the field in ``field`` (protocol status ABORTED: the protocol's
   rejection carries no reason). The action server's callbacks run in
@@ -358,7 +360,7 @@ class NavigatorNode(GuardedNode):
             raise _Stop(NavigationStatus.ABORTED, f"{names.TOPIC_ROB_STATUS}: Rob is not running")
         request = PlanPath.Request(start_row=proxy.test_start_row, start_col=proxy.test_start_col,
                                    horizon=proxy.test_horizon, mode=str(goal.mode), baseline=str(goal.baseline),
-                                   label=goal.label)
+                                   label=goal.label, risk=str(goal.risk_measure or ""), risk_level=goal.risk_level)
         if goal.mode != "literal":
             request.weights = samples
         plan = await self._call(names.SRV_PLAN, request)

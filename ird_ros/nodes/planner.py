@@ -45,10 +45,20 @@ reference_features=/world/proxy@...+/world/train_proxy_features@...+/world/train
 (header stamps of the messages used), so a caller can tell which world generation was planned on.
 Inputs given in the request are not listed.
 
+Risk measures (docs/spec.md section 4): ``risk`` "" and ``risk_level`` 0 take the parameters
+``risk`` / ``risk_level``; the request's measure is resolved and checked before the plan is
+queued by :func:`ird_ros.jobs.planning.request_risk` (``ird_core``'s ``check_risk``: refusals name
+``risk`` or ``risk_level``; ``mean_sd`` with ``trajectory`` names ``risk``). Trajectory CVaR is
+the library's MILP, bounded by ``time_limit`` alone (no work limit is passed). The response,
+``/ird/plan_info`` and the log line say which measure and level the plan used (``min``, level 0,
+for ``literal``).
+
 ``/ird/risk_map`` (OccupancyGrid 0..100, ``planning.risk_map`` of the posterior samples on the
-matching perceived test map, latched) is republished whenever a new posterior or a new matching
-map arrives. With ``replan_on_posterior`` true, every new posterior also triggers a plan with
-``default_mode`` / ``default_baseline`` from the proxy's test start and horizon.
+matching perceived test map, latched) is the reward spread of the samples (``risk_statistic``),
+whatever measure plans use; ``/ird/plan_info`` says which measure the current plan maximised. It
+is republished whenever a new posterior or a new matching map arrives. With
+``replan_on_posterior`` true, every new posterior also triggers a plan with ``default_mode`` /
+``default_baseline`` (and the default risk) from the proxy's test start and horizon.
 """
 
 from __future__ import annotations
@@ -63,15 +73,16 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from ird_core import planning
 from ird_core.checks import MAX_ABS_FEATURE
 from ird_core.mdp import GridMDP
-from ird_core.vocabulary import Baseline, PlanMode
+from ird_core.planning.risk_measures import MAX_LAMBDA, MIN_RISK
+from ird_core.vocabulary import RISK_MEASURES, Baseline, PlanMode
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
-from ird_ros.jobs.planning import PlanJob, ReferenceJob, run_plan
+from ird_ros.jobs.planning import PlanJob, ReferenceJob, reported_level, request_risk, risk_text, run_plan
 from ird_ros.runtime.guard import GuardedNode, guard_callback
-from ird_ros.runtime.node_main import exit_process, run_node
+from ird_ros.runtime.node_main import StartupError, exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import Offload, OffloadError, service_qos
 from ird_ros.stamps import stamp_text
@@ -87,6 +98,10 @@ PARAMETERS: dict[str, Param] = {
     "default_mode": Param("per_step", "Mode of plans made on a new posterior", choices=planning.MODES),
     "default_baseline": Param("training_features", "Baseline of plans made on a new posterior",
                               choices=planning.BASELINES),
+    "risk": Param("min", "Risk measure of a request with risk \"\" (and of replans): min | cvar | mean_sd "
+                         "(per_step only)", choices=RISK_MEASURES),
+    "risk_level": Param(0.0, "Level of the default risk measure: cvar's alpha in (0, 1], mean_sd's lambda "
+                             "(0 for min)", min_value=0.0, max_value=MAX_LAMBDA),
     "risk_statistic": Param("std", "Spread statistic of the risk map", choices=planning.STATISTICS),
     "time_limit": Param(10.0, "Seconds a trajectory plan may take (label search and MILP); past it the best "
                               "path found is answered as a fallback", min_value=0.001),
@@ -130,6 +145,12 @@ class PlannerNode(GuardedNode):
         self.replan_on_posterior = p["replan_on_posterior"]
         self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
         self.risk_statistic = p["risk_statistic"]
+        try:  # the default measure, checked once (a bad pair would refuse every defaulted request)
+            default = request_risk(p["risk"], p["risk_level"], MIN_RISK,
+                                   self.default_mode if self.replan_on_posterior else None)
+        except ValueError as exc:
+            raise StartupError(f"parameter {exc}") from None
+        self.default_risk = default
         self.time_limit, self.max_horizon = p["time_limit"], p["max_horizon"]
         self.max_plan_work, self.max_map_values = p["max_plan_work"], p["max_map_values"]
         # Trajectory plans (seconds, up to time_limit) get their own worker: a long one never
@@ -227,6 +248,7 @@ class PlannerNode(GuardedNode):
         # Mode and baseline first: which inputs are defaulted depends on them.
         planning.check_plan_arguments(req.mode, req.baseline)
         mode, baseline = PlanMode(req.mode), Baseline(req.baseline)
+        risk = request_risk(req.risk, req.risk_level, self.default_risk, mode)
         if req.horizon > self.max_horizon:
             raise ValueError(f"horizon: {req.horizon} exceeds max_horizon={self.max_horizon}")
         check_text(req.label, "label")
@@ -247,7 +269,7 @@ class PlannerNode(GuardedNode):
             reference_job, used = self._reference_job(feature_names)
             sources.append("reference_features=" + "+".join(used))
         job = PlanJob(mdp=mdp, weights=weights, mode=mode, baseline=baseline, reference_features=reference,
-                      reference_job=reference_job, time_limit=time_limit)
+                      reference_job=reference_job, time_limit=time_limit, risk=risk)
         label = req.label or (mode.value if mode is PlanMode.LITERAL else f"ird_{mode.value}_{baseline.value}")
         return _Accepted(job=job, grid=grid, label=label, sources=tuple(sources))
 
@@ -360,7 +382,9 @@ class PlannerNode(GuardedNode):
         label = accepted.label
         path, info = self._publish_plan(accepted, plan)
         response.success = True
-        response.message = (f"{label}: {plan.mode}/{plan.baseline} objective {plan.objective:.6g} "
+        response.risk, response.risk_level = info.risk, info.risk_level
+        measure = risk_text(plan.mode, info.risk, info.risk_level)
+        response.message = (f"{label}: {plan.mode}/{plan.baseline}, {measure}, objective {plan.objective:.6g} "
                             f"({plan.solver}, {len(plan.cells) - 1} moves)"
                             + (f"; {outcome.fallback}" if outcome.fallback else "")
                             + (f"; inputs: {', '.join(sources)}" if sources else ""))
@@ -376,7 +400,8 @@ class PlannerNode(GuardedNode):
         path = conv.cells_to_path(plan.cells, resolution=grid.resolution, origin=grid.origin,
                                   height=grid.shape[0], width=grid.shape[1], stamp=stamp)
         info = PlanInfo(header=conv.make_header(stamp), label=accepted.label, mode=str(plan.mode),
-                        baseline=str(plan.baseline), objective=float(plan.objective),
+                        baseline=str(plan.baseline), objective=float(plan.objective), risk=str(plan.risk.measure),
+                        risk_level=reported_level(plan.risk),
                         rows=[int(r) for r, _ in plan.cells], cols=[int(c) for _, c in plan.cells])
         self._info_pub.publish(info)  # before the path: Rob can label the plan as soon as it starts
         self._plan_pub.publish(path)

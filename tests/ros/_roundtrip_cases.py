@@ -71,6 +71,8 @@ class _Posterior:  # duck-typed like ird_core.posterior.Posterior
         self.prior_sigma = 1.0
         self.num_chains = 4
         self.seed = 4242
+        self.proxy_counts = "maxent"  # the observation model, copied into the message
+        self.designer_temperature = 0.625
 
 
 def reward_posterior() -> RewardPosterior:
@@ -120,7 +122,7 @@ def rob_status() -> RobStatus:
 
 def plan_info() -> PlanInfo:
     return PlanInfo(header=_header(), label="ird_trajectory_log_z", mode="trajectory", baseline="log_z",
-                    objective=-3.0625, rows=[1, 1, 2, 3], cols=[2, 3, 3, 3])
+                    objective=-3.0625, rows=[1, 1, 2, 3], cols=[2, 3, 3, 3], risk="cvar", risk_level=0.1)
 
 
 def _options() -> list[Any]:
@@ -188,6 +190,7 @@ def infer_request(*, short_data: bool = False) -> InferReward.Request:
     req.proxy_weights = [0.1, -0.2]
     req.proxy_map = feature_grid(10, 12, 2, seed=12)  # the proxy lives on its own 2 layers
     req.beta, req.method, req.num_samples, req.seed, req.prior_sigma = 3.0, "maxent_z", 50, 11, 0.0
+    req.proxy_counts, req.designer_temperature = "optimal", 0.3
     return req
 
 
@@ -198,6 +201,7 @@ def plan_request() -> PlanPath.Request:
     req.mode, req.baseline, req.label = "trajectory", "log_z", "ird_trajectory"
     req.weights = _rng(4).normal(size=(5, 3)).reshape(-1).tolist()
     req.reference_features = [0.7, 0.2, 0.1]
+    req.risk, req.risk_level = "cvar", 0.1  # 0.1 has no exact binary form: the bits must survive
     return req
 
 
@@ -238,6 +242,7 @@ def respond(request: Any) -> Any:
         post = _Posterior(np.arange(request.num_samples * d, dtype=float).reshape(-1, d) / 7.0)
         post.method, post.beta, post.seed = request.method, request.beta, request.seed
         post.prior_sigma = request.prior_sigma or 1.0
+        post.proxy_counts, post.designer_temperature = request.proxy_counts, request.designer_temperature
         resp.posterior = conv.posterior_to_msg(post, feature_names=grid.layers, proxy_weights=proxy)
         resp.posterior.header = request.training_map.header
         resp.success, resp.message = True, digest(request)
@@ -252,6 +257,7 @@ def respond(request: Any) -> Any:
         resp.rows = [r for r, _ in cells]
         resp.cols = [c for _, c in cells]
         resp.objective = float(weights.sum()) + len(request.label)
+        resp.risk, resp.risk_level = request.risk, request.risk_level * 2  # the response's own fields travel
         resp.success, resp.message = True, digest(request)
         return resp
     if isinstance(request, ProposeQuery.Request):

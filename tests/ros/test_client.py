@@ -95,6 +95,20 @@ def test_call_inference_prints_the_posterior(inference: NodeProcess, capsys: pyt
     assert "acceptance" in out and "R-hat max" in out
 
 
+def test_call_inference_passes_the_observation_model(inference: NodeProcess,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """--proxy-counts / --designer-temperature reach /ird/infer: the posterior records them; an
+    temperature out of range is refused by the node, naming the field."""
+    assert call_inference.main(["--num-samples", "8", "--beta", "2", "--timeout", "60",
+                                "--proxy-counts", "maxent", "--designer-temperature", "0.5"]) == 0
+    assert "observation model: maxent proxy counts, designer temperature 0.5" in capsys.readouterr().out
+    assert call_inference.main(["--num-samples", "8", "--beta", "2", "--timeout", "60",
+                                "--proxy-counts", "optimal"]) == 0
+    assert "observation model: optimal proxy counts\n" in capsys.readouterr().out
+    assert call_inference.main(["--num-samples", "8", "--timeout", "60", "--designer-temperature", "-2"]) == 1
+    assert "designer_temperature: " in capsys.readouterr().err
+
+
 def test_refusal_from_the_node_names_the_field(inference: NodeProcess, ros_ctx: Any) -> None:
     request = call_inference.generated_request(0)
     request.beta, request.method, request.num_samples = -1.0, "maxent_z", 4

@@ -4,7 +4,8 @@ World, perception, inference, planner and the designer node in web mode run as p
 private ROS domain; the test asks a question through /ird/query, headless Chromium (Debian's
 package, driven by Selenium through Debian's chromedriver: nothing is downloaded) loads the
 page, sees the options, clicks one, and the test sees the new posterior on /ird/posterior and
-the answer in the page's history. It saves the page as out/designer_web.png.
+the answer in the page's history; beside the risk map it says which risk measure the current plan
+(a per-step CVaR plan asked for first) uses. It saves the page as out/designer_web.png.
 
 A missing browser or driver fails the test (apt-get install -y chromium chromium-driver).
 """
@@ -129,13 +130,23 @@ def message_text(driver: webdriver.Chrome, words: str) -> str:
 
 
 def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver.Chrome, ros_ctx: Any) -> None:
+    from ird_ros.client import plan_request
+
     probe = Probe(ros_ctx, graph["procs"])
     try:
         proxy = infer_first_posterior(probe)
         probe.until(lambda: probe.posteriors and probe.risk_maps, "the first posterior and the planner's risk map")
+        planned = probe.ird.plan(plan_request((proxy.test_start_row, proxy.test_start_col), proxy.test_horizon,
+                                              "per_step", "none", label="web_cvar", risk="cvar", risk_level=0.25),
+                                 timeout=120.0)
+        assert planned.ok and planned.response.risk == "cvar", planned.message
         query = ask(probe, proxy, seed=1)
 
         browser.get(graph["url"])
+        # Beside the risk map: the risk measure of the current plan (/ird/plan_info via the designer).
+        WebDriverWait(browser, WAIT).until(
+            lambda d: d.find_element(By.ID, "risk-plan").text == "plan: per-step CVaR alpha=0.25",
+            "the page never said which risk measure the plan uses")
         buttons = shown_query(browser, query.query_id)
         assert [b.text.splitlines()[0] for b in buttons] == ["Option A", "Option B"]
         assert len(buttons) == len(query.options)

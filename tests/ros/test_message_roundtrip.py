@@ -108,3 +108,25 @@ def test_service_rejects_bad_request_naming_the_field(ros_node: Any, echo: NodeP
     assert response.message.startswith("training_map.data: expected 360 values (H=10 x W=12 x d=3), got 359")
     # ... and the server keeps serving.
     assert call_service(ros_node, client, infer_request(), processes=[echo]).success
+
+
+def test_risk_and_observation_model_fields_travel(ros_node: Any, echo: NodeProcess) -> None:
+    """The new fields cross DDS with their values: PlanPath's risk / risk_level both ways (the echo
+    answers with the request's measure and twice its level), InferReward's proxy_counts /
+    designer_temperature and the RewardPosterior that records them; PlanInfo's in the topic cases."""
+    from ird_msgs.srv import InferReward, PlanPath
+
+    plan_client = ros_node.create_client(PlanPath, "/roundtrip/plan_path")
+    wait_for_service(ros_node, plan_client, processes=[echo])
+    request = SERVICE_REQUESTS["plan_path"]()
+    plan = call_service(ros_node, plan_client, request, processes=[echo])
+    assert (request.risk, request.risk_level) == ("cvar", 0.1)
+    assert (plan.risk, plan.risk_level) == ("cvar", 0.2)
+    infer_client = ros_node.create_client(InferReward, "/roundtrip/infer_reward")
+    wait_for_service(ros_node, infer_client, processes=[echo])
+    inferred = call_service(ros_node, infer_client, infer_request(), processes=[echo])
+    assert inferred.success, inferred.message
+    posterior = conv.posterior_from_msg(inferred.posterior)
+    assert (posterior.proxy_counts, posterior.designer_temperature) == ("optimal", 0.3)
+    info = TOPIC_CASES["plan_info"][1]()
+    assert (info.risk, info.risk_level) == ("cvar", 0.1)

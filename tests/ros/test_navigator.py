@@ -4,7 +4,8 @@ started by the launcher in a private domain, driven through ``IrdClient.navigate
 A goal infers, plans and drives, with feedback in every stage, and its result judges the driven
 cells like ird_core's evaluate_path on the ground truth; cancel stops Rob where he is; a second
 goal while one runs is rejected; bad goals are rejected naming the field; "" uses the current
-posterior; a question with no designer running aborts saying so.
+posterior; the goal's risk measure reaches /ird/plan; a question with no designer running aborts
+saying so.
 """
 
 from __future__ import annotations
@@ -135,7 +136,9 @@ def test_a_second_goal_while_one_runs_is_rejected(ird: Any) -> None:
 @pytest.mark.parametrize(("changes", "field"), [
     (dict(method="nope"), "method"),
     (dict(queries=-1), "queries"),
-    (dict(risk_measure="cvar"), "risk_measure"),
+    (dict(risk_measure="worst"), "risk_measure"),
+    (dict(risk_measure="cvar"), "risk_level"),  # cvar needs its alpha
+    (dict(risk_measure="mean_sd", risk_level=1.0, mode="trajectory"), "risk_measure"),
     (dict(mode="zigzag"), "mode"),
 ])
 def test_bad_goals_are_rejected_naming_the_field(ird: Any, changes: dict[str, Any], field: str) -> None:
@@ -162,6 +165,24 @@ def test_the_current_posterior_is_used_after_an_inference(ird: Any, inst: Any) -
     assert [f.posterior_summary for f in feedback if f.posterior_summary][0].startswith("maxent_z, 40 samples")
     assert len(ird.received(names.TOPIC_POSTERIOR)) == posteriors  # no new inference
     assert stamp_key(ird.received(names.TOPIC_POSTERIOR)[-1].header.stamp) == stamp_key(current.header.stamp)
+
+
+def test_the_goals_risk_measure_reaches_the_planner(ird: Any) -> None:
+    """risk_measure / risk_level are /ird/plan's risk / risk_level: the plan Rob drives says so on
+    /ird/plan_info, and "" leaves the planner's default (min, level 0)."""
+    from ird_ros.client import NavigationStatus
+    from ird_ros.graph import names
+
+    ird.subscribe(names.TOPIC_PLAN_INFO)
+    for label, changes, expected in (("nav_test_cvar", dict(risk_measure="cvar", risk_level=0.5), ("cvar", 0.5)),
+                                     ("nav_test_default", dict(risk_measure=""), ("min", 0.0))):
+        result = ird.navigate(_goal(method="", label=label, **changes), timeout=300)
+        assert result.status is NavigationStatus.SUCCEEDED, result.message
+        ird.spin_until(lambda lb=label: any(i.label == lb for i in ird.received(names.TOPIC_PLAN_INFO)),
+                       timeout=30, what=f"/ird/plan_info of {label}")
+        info = [i for i in ird.received(names.TOPIC_PLAN_INFO) if i.label == label][-1]
+        assert (info.mode, info.risk, info.risk_level) == ("per_step", *expected)
+        assert [tuple(c) for c in result.cells] == list(zip(info.rows, info.cols))
 
 
 def test_a_question_without_a_designer_aborts_saying_so(ird: Any) -> None:

@@ -1,5 +1,6 @@
-"""The inference node over real DDS: exact posteriors, named validation errors (table and fuzz),
-and responsiveness while a long inference runs in its worker process."""
+"""The inference node over real DDS: exact posteriors (under each observation model), named
+validation errors (table and fuzz), and responsiveness while a long inference runs in its worker
+process."""
 
 from __future__ import annotations
 
@@ -59,7 +60,8 @@ def client(ros_ctx: Any, inference: NodeProcess) -> Iterator[Client]:
 
 def make_request(inst: lavaland.LavalandInstance, *, method: str = "maxent_z", num_samples: int = 12,
                  seed: int = 7, beta: float = 2.0, prior_sigma: float = 0.0,
-                 proxy_map: bool = False) -> InferReward.Request:
+                 proxy_map: bool = False, proxy_counts: str = "",
+                 designer_temperature: float = 0.0) -> InferReward.Request:
     req = InferReward.Request()
     req.training_map = conv.feature_grid_to_msg(inst.train_features, inst.feature_names)
     if proxy_map:
@@ -72,6 +74,7 @@ def make_request(inst: lavaland.LavalandInstance, *, method: str = "maxent_z", n
     req.num_samples = num_samples
     req.seed = seed
     req.prior_sigma = prior_sigma
+    req.proxy_counts, req.designer_temperature = proxy_counts, designer_temperature
     return req
 
 
@@ -143,6 +146,36 @@ def test_explicit_prior_sigma_is_used(client: Client, small: lavaland.LavalandIn
     with _no_check():
         expected = core_inference.sample_posterior(small.proxy_weights, mdp, 2.0, "maxent_z", 8, 5, 0.5, **SAMPLER)
     assert_posterior_equals(response.posterior, expected, small.feature_names, small.proxy_weights)
+
+
+MODELS = [("maxent_z", "optimal", 0.0), ("sample_z", "optimal", 0.0), ("maxent_z", "maxent", 0.5)]
+
+
+@pytest.mark.parametrize("method,counts,temperature", MODELS)
+def test_observation_model_equals_sample_joint_posterior(method: str, counts: str, temperature: float, client: Client,
+                                                         small: lavaland.LavalandInstance) -> None:
+    """proxy_counts / designer_temperature reach the library: the posterior is, bit for bit,
+    sample_joint_posterior with that ObservationModel on the same observation (temperature 0 = the
+    node's default, ObservationModel().temperature), the message records the model, and a request
+    leaving both unset gets the library's default model (so a different posterior from any other)."""
+    response = client.call(make_request(small, method=method, num_samples=10, seed=123, beta=3.0,
+                                        proxy_counts=counts, designer_temperature=temperature))
+    assert response.success, response.message
+    model = core_inference.ObservationModel(counts, temperature or core_inference.ObservationModel().temperature)
+    mdp = GridMDP(f64(small.train_features), small.train_start, small.train_horizon)
+    with _no_check():
+        expected = core_inference.sample_joint_posterior([core_inference.ProxyObservation(small.proxy_weights, mdp)],
+                                                         3.0, method, 10, 123, 1.0, observation_model=model, **SAMPLER)
+    assert_posterior_equals(response.posterior, expected, small.feature_names, small.proxy_weights)
+    got = conv.posterior_from_msg(response.posterior)
+    assert (got.proxy_counts, got.designer_temperature) == (model.counts, model.temperature)
+    default = client.call(make_request(small, method=method, num_samples=10, seed=123, beta=3.0))
+    assert default.success, default.message
+    default_model = core_inference.ObservationModel()
+    assert (default.posterior.proxy_counts, default.posterior.designer_temperature) == (
+        default_model.counts, default_model.temperature)
+    if model != default_model:
+        assert not np.array_equal(default.posterior.samples, response.posterior.samples)
 
 
 @pytest.mark.parametrize("method", core_inference.METHODS)
@@ -240,6 +273,10 @@ MALFORMED: list[tuple[str, Callable[[InferReward.Request], None], str]] = [
     ("prior_sigma 1e308", lambda r: setattr(r, "prior_sigma", 1e308), "prior_sigma"),
     ("map values 1e30", lambda r: _set_data(r.training_map, np.full(SIZE * SIZE * 4, 1e30)), "training_map.data"),
     ("proxy_map values 1e30", lambda r: _proxy_map(r, SIZE, SIZE, 4, 1e30), "proxy_map.data"),
+    ("proxy_counts unknown", lambda r: setattr(r, "proxy_counts", "softmax"), "proxy_counts"),
+    ("designer_temperature negative", lambda r: setattr(r, "designer_temperature", -1.0), "designer_temperature"),
+    ("designer_temperature NaN", lambda r: setattr(r, "designer_temperature", math.nan), "designer_temperature"),
+    ("designer_temperature 1e4", lambda r: setattr(r, "designer_temperature", 1e4), "designer_temperature"),
 ]
 
 

@@ -1,6 +1,7 @@
 """The planner node over real DDS: plans equal ird_core.planning.plan_path, /plan and
 /ird/plan_info carry them, defaults come from the latest world/perception/posterior, the risk map
-follows the posterior, replan_on_posterior plans by itself, and bad requests are named."""
+follows the posterior, replan_on_posterior plans by itself, risk measures reach the library (CVaR
+at alpha 1 is the posterior mean's plan), and bad requests are named."""
 
 from __future__ import annotations
 
@@ -172,6 +173,61 @@ def test_explicit_plan_equals_plan_path(mode: str, baseline: str, k: int, probe:
     assert (response.path.poses[0].pose.position.x, response.path.poses[0].pose.position.y) == (x, y)
     info = check_published(probe, graph, response, label, 0.5, (1.0, -2.0))
     assert (info.mode, info.baseline) == (mode, baseline)
+    assert (info.risk, info.risk_level, response.risk, response.risk_level) == ("min", 0.0, "min", 0.0)
+
+
+@pytest.mark.parametrize("mode", ["per_step", "trajectory"])
+def test_cvar_one_plans_the_posterior_mean(mode: str, probe: Probe, graph: list[NodeProcess]) -> None:
+    """risk cvar at alpha 1 is the mean over the samples: the node's path is plan_path's with that
+    risk, which is the plan of the posterior mean weights, and not the min's (so the risk reached
+    the library); the response and /ird/plan_info say cvar 1."""
+    rng = np.random.default_rng(3)
+    features, weights = rng.normal(size=(5, 6, 3)), rng.normal(size=(5, 3))
+    label = f"test_cvar_{mode}"
+    response = plan(probe, graph, map=conv.feature_grid_to_msg(features, ["a", "b", "c"]), start_row=2, start_col=3,
+                    horizon=7, mode=mode, baseline="none", weights=weights.reshape(-1).tolist(), label=label,
+                    risk="cvar", risk_level=1.0)
+    assert response.success, response.message
+    mdp = GridMDP(f32(features), (2, 3), 7)
+    expected = planning.plan_path(mdp, weights, mode, "none", risk="cvar", risk_level=1.0)
+    mean = planning.plan_path(mdp, weights.mean(axis=0)[None], "per_step", "none")
+    worst = planning.plan_path(mdp, weights, mode, "none")
+    cells = list(zip(response.rows, response.cols))
+    assert cells == list(expected.cells) == list(mean.cells)
+    assert cells != list(worst.cells)  # the measure changed the plan: this test would see it ignored
+    assert math.isclose(response.objective, mean.objective, rel_tol=1e-12)
+    assert response.objective == expected.objective
+    assert (response.risk, response.risk_level) == ("cvar", 1.0)
+    info = check_published(probe, graph, response, label, 1.0)
+    assert (info.mode, info.risk, info.risk_level) == (mode, "cvar", 1.0)
+    assert "CVaR alpha=1" in response.message
+
+
+BAD_RISK: list[tuple[dict[str, Any], str]] = [
+    (dict(risk="worst"), "risk"),
+    (dict(risk="cvar"), "risk_level"),  # alpha 0: not in (0, 1]
+    (dict(risk="cvar", risk_level=1.5), "risk_level"),
+    (dict(risk="cvar", risk_level=math.nan), "risk_level"),
+    (dict(risk="mean_sd", risk_level=-1.0), "risk_level"),
+    (dict(risk="mean_sd", risk_level=101.0), "risk_level"),
+    (dict(risk="mean_sd", risk_level=1.0, mode="trajectory"), "risk"),
+    (dict(risk="min", risk_level=0.5), "risk_level"),
+    (dict(risk_level=0.5), "risk_level"),  # "" = the planner's min, which takes no level
+]
+
+
+def test_bad_risks_are_refused_naming_the_field_and_the_planner_keeps_serving(probe: Probe,
+                                                                              graph: list[NodeProcess]) -> None:
+    grid = conv.feature_grid_to_msg(np.zeros((5, 6, 3)), ["a", "b", "c"])
+    base: dict[str, Any] = dict(map=grid, start_row=1, start_col=1, horizon=4, mode="per_step", baseline="none",
+                                weights=[0.1, 0.2, 0.3] * 2)
+    for change, field in BAD_RISK:
+        response = plan(probe, graph, **{**base, **change})
+        assert not response.success and response.message.startswith(field + ":"), (change, response.message)
+        assert len(response.path.poses) == 0
+    response = plan(probe, graph, **base, risk="mean_sd", risk_level=0.0)  # lambda 0: the mean
+    assert response.success, response.message
+    assert (response.risk, response.risk_level) == ("mean_sd", 0.0)
 
 
 def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) -> None:
@@ -310,3 +366,23 @@ def test_plan_without_inputs_is_named() -> None:
             assert ird.plan(req, timeout=20.0).ok
         proc.stop()
         assert proc.returncode == 0, proc.describe()
+
+
+@pytest.mark.parametrize("params,field", [
+    (["-p", "risk:=cvar"], "risk_level"),  # cvar without its alpha
+    (["-p", "risk:=mean_sd", "-p", "risk_level:=1.0", "-p", "replan_on_posterior:=true",
+      "-p", "default_mode:=trajectory"], "risk"),  # replans would all be refused
+])
+def test_a_bad_default_risk_stops_the_planner_at_start_up(params: list[str], field: str) -> None:
+    """The default measure is checked once, at start-up (exit code 2 naming the parameter), not
+    refused on every request that leaves risk empty."""
+    import subprocess
+    import sys
+
+    from ird_ros.graph.domains import lease_domain
+
+    with lease_domain() as lease:
+        run = subprocess.run([sys.executable, "-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS,
+                              *params], env=lease.env(), capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2, (run.stdout, run.stderr)
+    assert f"parameter {field}:" in run.stdout + run.stderr, (run.stdout, run.stderr)

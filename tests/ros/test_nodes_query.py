@@ -1,7 +1,8 @@
 """/ird/query and /ird/answer over real DDS (world + inference nodes, 8x8, T = 12, side_effects):
 the options are legal, distinct paths whose features and information gain the library reproduces,
 an answer moves the posterior towards the chosen option, bad answers change nothing, a second
-answer during a re-sampling is refused as busy (never lost), and a new world forgets the evidence."""
+answer during a re-sampling is refused as busy (never lost), an answer re-samples under the observation
+model of the posterior it extends, and a new world forgets the evidence."""
 
 from __future__ import annotations
 
@@ -11,11 +12,13 @@ import numpy as np
 import pytest
 from _query_world import SAMPLER_ARGS, SIZE, Probe, node_args, world_args
 
+from ird_core import posterior as core_posterior
 from ird_core.designer import queries as core_queries
+from ird_core.mdp import GridMDP
 from ird_msgs.srv import ProposeQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
-from ird_ros.client import CallStatus
+from ird_ros.client import CallStatus, infer_request
 from ird_ros.graph.domains import DomainLease
 from ird_ros.testing import running_nodes
 
@@ -147,6 +150,45 @@ def test_bad_queries_name_the_field(probe: Probe) -> None:
     resp = probe.ird.propose_query(ProposeQuery.Request(map=wrong, start_row=0, start_col=0, horizon=3))
     assert resp.status is CallStatus.REFUSED and resp.field == "map.layers", resp
     assert not resp.response.success and resp.message.startswith("map.layers:"), resp.message
+
+
+def test_an_answer_resamples_with_the_posteriors_observation_model(probe: Probe) -> None:
+    """/ird/infer with proxy_counts optimal, then an answer: the re-sampled posterior is, bit for
+    bit, sample_joint_posterior of the proxy and the answer under ObservationModel("optimal"),
+    warm-started at the first posterior (what the inference jobs document), and says so."""
+    import warnings
+
+    from ird_ros.jobs.inference_queries import resample_seed
+
+    world = probe.world()
+    proxy = world.proxy
+    request = infer_request(world.train, (proxy.start_row, proxy.start_col), proxy.horizon, proxy.weights, beta=2.0,
+                            method="maxent_z", num_samples=40, seed=31, proxy_counts="optimal")
+    first = probe.ird.infer(request, timeout=120.0)
+    assert first.ok and first.unwrap().proxy_counts == "optimal", first.message
+    query = probe.query(proxy, num_options=2, strategy="random", seed=7)
+    assert query.ok, query.message
+    answered = probe.answer(query.unwrap().query_id, 1, beta=5.0)
+    assert answered.ok, answered.message
+    post = answered.unwrap()
+    assert (post.proxy_counts, answered.response.posterior.proxy_counts) == ("optimal", "optimal")
+
+    model = core_posterior.ObservationModel("optimal")
+    train = conv.feature_grid_from_msg(world.train).features.astype(np.float64)
+    observation = core_posterior.ProxyObservation(np.asarray(proxy.weights, np.float64),
+                                                  GridMDP(train, (proxy.start_row, proxy.start_col), proxy.horizon))
+    settings = core_posterior.SamplerSettings(num_chains=4, warmup=40, thin=1).kwargs()  # SAMPLER_ARGS
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # short chains
+        initial = core_posterior.sample_joint_posterior([observation], 2.0, "maxent_z", 40, 31,
+                                                        observation_model=model, **settings)
+        assert np.array_equal(initial.samples, first.unwrap().samples)
+        settings.pop("warmup")  # a warm start has its own warm-up
+        choice = core_posterior.ChoiceObservation(query.unwrap().option_features, 1, 5.0)
+        expected = core_posterior.sample_joint_posterior([observation, choice], 2.0, "maxent_z", 40,
+                                                         resample_seed(31, 1), initial=initial,
+                                                         observation_model=model, **settings)
+    assert np.array_equal(post.samples, expected.samples)
 
 
 def test_a_new_world_forgets_the_evidence(probe: Probe) -> None:

@@ -163,9 +163,11 @@ function drawRisk() {
   const {ctx, w, h} = setupCanvas($("risk"));
   const risk = state && state.risk_map;
   if (!risk) {
-    $("risk-lo").textContent = ""; $("risk-hi").textContent = "";
+    $("risk-lo").textContent = ""; $("risk-hi").textContent = ""; $("risk-plan").textContent = "";
     return placeholder(ctx, w, h, "No risk map yet");
   }
+  // Which risk measure the current plan maximised (the map itself is the reward spread either way).
+  $("risk-plan").textContent = risk.plan ? `plan: ${risk.plan.text}` : "plan: none in this world yet";
   const geo = gridGeometry(risk.height, risk.width, w, h);
   // The planner's scale as it is, 0..100 (100 = this map's largest spread), in the pictures' risk colours.
   $("risk-lo").textContent = "0 = sure";
