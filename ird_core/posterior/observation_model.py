@@ -70,7 +70,9 @@ class ObservationModel:
         return self.counts == ProxyCounts.OPTIMAL
 
 
-#: The default: optimal-path counts with the own term (chosen from the frontier, docs/modelling.md).
+#: The default (``ObservationModel()``): unit-temperature MaxEnt counts with the own term, chosen
+#: from the paper-scale frontier (docs/experiments.md): the optimal reading is far better where the
+#: chains converge (d <= 10) and does not converge with the project's samplers in d = 50.
 DEFAULT_OBSERVATION_MODEL = ObservationModel()
 #: The unit-temperature MaxEnt reading (the library's only reading before the choice existed).
 MAXENT_OBSERVATION_MODEL = ObservationModel(ProxyCounts.MAXENT.value)

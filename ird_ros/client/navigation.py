@@ -66,7 +66,9 @@ class NavigationGoal:
 
     ``method`` "" = use the current ``/ird/posterior``; ``beta`` / ``num_samples`` 0 = the
     navigator's defaults; ``mode`` a PlanMode value (``literal``, ``per_step``, ``trajectory``);
-    ``risk_measure`` only ``min`` is implemented; ``queries`` designer questions asked before driving.
+    ``risk_measure`` "" = the planner's ``risk`` parameter, else ``min``, ``cvar`` or ``mean_sd`` with
+    ``risk_level`` (alpha, lambda; 0 with "" = the planner's ``risk_level``); ``queries`` designer
+    questions asked before driving.
     """
 
     method: str = "maxent_z"
@@ -75,7 +77,7 @@ class NavigationGoal:
     seed: int = 0
     mode: str = "per_step"
     baseline: str = "training_features"
-    risk_measure: str = "min"
+    risk_measure: str = ""
     risk_level: float = 0.0
     queries: int = 0
     label: str = ""
