@@ -4,12 +4,26 @@
 
     python -m ird_ros.<module> --ros-args --params-file msgs_config/params/graph.yaml
 
-It restores the default SIGINT handler (a process started with ``&`` from a non-interactive
-shell inherits SIGINT *ignored*), makes SIGTERM behave like SIGINT, initialises rclpy with the
-command line, creates the node, logs ``<name> ready`` and spins the node in a single-threaded
-executor; on SIGINT/SIGTERM it shuts the executor down before destroying the node (whose
-``destroy_node`` ends its worker processes) and exits 0. A node that cannot start (bad
-parameter) logs ``cannot start: ...`` and exits 2.
+Life cycle and its invariants:
+
+- Signals: rclpy is initialised with ``SignalHandlerOptions.NO`` (rclpy installs no handler of
+  its own) and ``run_node`` installs one handler for SIGINT and SIGTERM, also when the process
+  inherited SIGINT *ignored* (a process started with ``&`` from a non-interactive shell).
+- Start-up (``rclpy.init``, ``factory()``): the first signal raises ``KeyboardInterrupt``, so a
+  slow start-up (worker warm-up) can be cut short; the node never served, exit 0. A factory
+  that raises anything else (bad parameter, missing input) logs ``cannot start: ...``, exit 2.
+- Serving: after ``<name> ready`` is logged, a signal only *records* the request to stop: no
+  exception is ever raised inside rclpy's executor or inside a callback, so the callback that
+  is running when the signal arrives finishes (and answers). The main loop runs
+  ``executor.spin_once(timeout_sec=0.1)`` until a stop was requested or the context was shut
+  down externally. A Python signal handler runs on the main thread between two bytecodes: in a
+  running callback it only records; while ``spin_once`` waits (in C) it runs when the wait
+  returns, so the stop is acted on within 0.1 s of an idle node's signal.
+- Clean-up runs with the executor idle (no callback executing, nothing waiting in a wait set):
+  ``executor.shutdown()``, then ``node.destroy_node()`` (which ends the node's worker
+  processes) only if the shutdown reported that no callback was outstanding, then
+  ``rclpy.try_shutdown()``; exit 0. Further signals during clean-up are recorded and ignored.
+- The process then ends with :func:`exit_process` (no interpreter finalisation).
 
 ``WorkerPool`` (:mod:`ird_ros.runtime.workers`, re-exported here) runs picklable functions in
 worker processes and hands the result to an ``async`` rclpy callback as an awaitable rclpy Future,
@@ -81,29 +95,48 @@ def declare(
     return value
 
 
-def _raise_keyboard_interrupt(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt(f"signal {signum}")
+class _StopRequest:
+    """The SIGINT/SIGTERM handler of ``run_node`` and what it recorded.
+
+    ``requested`` becomes True at the first signal and stays True. While ``interrupting`` (the
+    start-up phase) the *first* signal also raises ``KeyboardInterrupt``; afterwards, and for
+    every later signal, the handler only records, so it can never cut the clean-up short nor
+    interrupt rclpy's executor.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.interrupting = True
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        first = not self.requested
+        self.requested = True
+        if first and self.interrupting:
+            raise KeyboardInterrupt(f"signal {signum}")
 
 
 def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> int:
-    """Create a node with ``factory()`` (after ``rclpy.init(args=args)``) and spin it.
+    """Create a node with ``factory()`` (after ``rclpy.init(args=args)``) and spin it until
+    SIGINT/SIGTERM or an external shutdown (the life cycle in the module doc).
 
     Returns the process exit code: 0 after SIGINT/SIGTERM or an external shutdown, 2 if the
     factory raised (e.g. :class:`StartupError` for a bad parameter).
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     # A crash inside rclpy/DDS (seen rarely at shutdown under load) then leaves the Python
     # stacks of every thread in the node's output, where the launcher and the tests show it.
     faulthandler.enable()
-    # Before rclpy.init: rclpy's own handlers (which wake the executor) chain to these.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
-    rclpy.init(args=list(sys.argv if args is None else args))
+    stop = _StopRequest()
     node = None
     executor = None
     try:
+        signal.signal(signal.SIGINT, stop)
+        signal.signal(signal.SIGTERM, stop)
+        rclpy.init(args=list(sys.argv if args is None else args),
+                   signal_handler_options=SignalHandlerOptions.NO)
         executor = SingleThreadedExecutor()
         try:
             node = factory()
@@ -112,25 +145,42 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
         except Exception as exc:  # noqa: BLE001 - bad parameters, missing inputs: say why, exit 2
             rclpy.logging.get_logger("ird_ros").error(f"cannot start: {type(exc).__name__}: {exc}")
             return 2
-        executor.add_node(node)
-        # The readiness line launchers and tests wait for ("<name> ready").
-        node.get_logger().info(f"{node.get_name()} ready")
-        executor.spin()
+        # From here on a signal only sets stop.requested (checked between two spin_once calls).
+        stop.interrupting = False
+        if not stop.requested:
+            executor.add_node(node)
+            # The readiness line launchers and tests wait for ("<name> ready").
+            node.get_logger().info(f"{node.get_name()} ready")
+            while not stop.requested and executor.context.ok():
+                executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        # Ignore further signals while cleaning up, so a second Ctrl-C cannot cut it short.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        if executor is not None:
-            with contextlib.suppress(Exception):
-                executor.shutdown(timeout_sec=2.0)
-        if node is not None:
+        stop.interrupting = False
+        _clean_up(node, executor)
+    return 0
+
+
+def _clean_up(node: Any, executor: Any) -> None:
+    """Shut the (idle) executor down, destroy the node if nothing is outstanding, shut rclpy down."""
+    import rclpy
+
+    idle = True
+    if executor is not None:
+        try:
+            idle = executor.shutdown(timeout_sec=5.0)
+        except Exception as exc:  # noqa: BLE001 - say so; the process ends anyway
+            idle = False
+            rclpy.logging.get_logger("ird_ros").error(f"executor shutdown failed: {type(exc).__name__}: {exc}")
+    if node is not None:
+        if idle:
             with contextlib.suppress(Exception):
                 node.destroy_node()
-        with contextlib.suppress(Exception):
-            rclpy.try_shutdown()
-    return 0
+        else:  # destroying entities a callback may still use is what crashes rclpy
+            rclpy.logging.get_logger("ird_ros").warning(
+                "a callback was still running at shutdown: the node is left to the process exit")
+    with contextlib.suppress(Exception):
+        rclpy.try_shutdown()
 
 
 def exit_process(code: int) -> None:
