@@ -14,7 +14,6 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-import numpy as np
 import pytest
 import yaml
 
@@ -65,20 +64,37 @@ def _goal(**changes: Any) -> Any:
     return NavigationGoal(**fields)
 
 
-def _statuses_of(ird: Any, cells: np.ndarray) -> list[Any]:
-    """Rob's statuses of the latest drive labelled nav_test (its plan stamp is the last one seen)."""
+def _drive_statuses(ird: Any, since: int) -> list[Any]:
+    """Rob's statuses of the first drive labelled nav_test among the statuses received after the
+    first ``since``, up to its final one (``done``), which is waited for: /rob/status reaches this
+    client independently of the action's result and may arrive after it (the navigator itself
+    takes Rob's final status before it answers)."""
     from ird_ros.graph import names
     from ird_ros.stamps import stamp_key
 
-    statuses = [s for s in ird.received(names.TOPIC_ROB_STATUS) if s.plan_label.startswith("nav_test")]
-    key = stamp_key(statuses[-1].plan_stamp)
-    return [s for s in statuses if stamp_key(s.plan_stamp) == key]
+    received = ird.received(names.TOPIC_ROB_STATUS)
+
+    def drive() -> list[Any]:
+        ours = [s for s in received[since:] if s.plan_label.startswith("nav_test")]
+        key = stamp_key(ours[0].plan_stamp) if ours else None
+        return [s for s in ours if stamp_key(s.plan_stamp) == key]
+
+    ird.spin_until(lambda: any(s.done for s in drive()), timeout=60, what="Rob's final status of the drive")
+    statuses = drive()
+    return statuses[:next(i for i, s in enumerate(statuses) if s.done) + 1]
+
+
+def _status_count(ird: Any) -> int:
+    from ird_ros.graph import names
+
+    return len(ird.received(names.TOPIC_ROB_STATUS))
 
 
 def test_a_goal_infers_plans_drives_and_is_judged_on_the_ground_truth(ird: Any, inst: Any) -> None:
     from ird_ros.client import NavigationStatus
 
     feedback: list[Any] = []
+    since = _status_count(ird)
     result = ird.navigate(_goal(), on_feedback=feedback.append, timeout=300)
     assert result.status is NavigationStatus.SUCCEEDED, result.message
     stages = {f.stage for f in feedback}
@@ -97,7 +113,7 @@ def test_a_goal_infers_plans_drives_and_is_judged_on_the_ground_truth(ird: Any, 
     assert result.reached_target == outcome.reached_target
     assert result.true_return == pytest.approx(outcome.true_return)
     assert math.isfinite(result.objective)
-    final = _statuses_of(ird, cells)[-1]
+    final = _drive_statuses(ird, since)[-1]
     assert final.done and not final.stopped and (final.row, final.col) == path[-1]
 
 
@@ -105,6 +121,7 @@ def test_cancel_while_driving_stops_rob_where_he_is(ird: Any, inst: Any) -> None
     from ird_ros.client import NavigationStatus
 
     feedback: list[Any] = []
+    since = _status_count(ird)
     handle = ird.navigate_async(_goal(seed=12), on_feedback=feedback.append)
     ird.spin_until(lambda: any(f.stage == "driving" and f.pose_cell is not None for f in feedback) or handle.done(),
                    timeout=300, what="Rob driving the navigation plan")
@@ -114,8 +131,7 @@ def test_cancel_while_driving_stops_rob_where_he_is(ird: Any, inst: Any) -> None
     cells = [tuple(c) for c in result.cells]
     assert 1 <= len(cells) < inst.test_horizon + 1
     assert cells[0] == tuple(inst.test_start)
-    statuses = _statuses_of(ird, result.cells)
-    final = statuses[-1]
+    final = _drive_statuses(ird, since)[-1]
     assert final.stopped and final.done and final.step == len(cells) - 1
     assert (final.row, final.col) == cells[-1]
     assert result.touched_lava == evaluation.evaluate_path(inst.test_labels, cells).touched_lava
