@@ -138,6 +138,7 @@ def _world(domain: DomainLease) -> NodeProcess:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # 30 node start-ups: about 2 min on a loaded 2-core machine
 def test_world_node_exits_0_on_a_signal_at_any_point(ros_domain: DomainLease, ros_ctx: Any) -> None:
     """30 world nodes, one after the other; each is signalled at one of :data:`PHASES` with SIGINT
     or SIGTERM (every pair of phase and signal three times) and must exit 0."""
