@@ -231,8 +231,8 @@ def test_factorial_granularities_share_the_first_samples():
     reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     by = {r.planner: r for r in ex.run_trial(spec)}
     for z in spec.z_methods:
-        samples = trials._posterior(spec, inst, z).samples[: spec.factorial_samples]
-        assert by[f"ird_{z}"].cells == planning.plan_path(test, trials._posterior(spec, inst, z).samples, "per_step",
+        samples = trials.trial_posterior(spec, inst, z).samples[: spec.factorial_samples]
+        assert by[f"ird_{z}"].cells == planning.plan_path(test, trials.trial_posterior(spec, inst, z).samples, "per_step",
                                                           ex.MAIN_BASELINE, reference).cells
         for base in ex.BASELINES:
             step, traj = by[f"{z}/per_step/{base}"], by[f"{z}/trajectory/{base}"]
@@ -289,7 +289,7 @@ def test_per_method_sampler_settings():
     # the trial's posterior of each method runs with that method's settings
     own = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(3, 12, 2, 4)))
     inst = ex.trial_instance(own)
-    sz, mz = trials._posterior(own, inst, "sample_z"), trials._posterior(own, inst, "maxent_z")
+    sz, mz = trials.trial_posterior(own, inst, "sample_z"), trials.trial_posterior(own, inst, "maxent_z")
     assert (sz.num_chains, sz.warmup, mz.num_chains, mz.warmup) == (3, 12, TINY["num_chains"], TINY["warmup"])
     long = mod.build_parser().parse_args(["--z-sampler", "sample_z", "warmup_max_leapfrog=64", "trajectory_length=3"])
     mod.resolve_spec_flags(long)
@@ -369,7 +369,7 @@ def test_sampler_settings_follow_the_weight_space_dimension():
     for small_dim, kernel, chains in ((4, "elliptical", 3), (3, "hmc", 2)):  # side_effects: d = 4
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=ex.SamplerSettings(
             2, 10, 1, 4, small_dim=small_dim, small=small)))
-        post = trials._posterior(spec, ex.trial_instance(spec), "sample_z")
+        post = trials.trial_posterior(spec, ex.trial_instance(spec), "sample_z")
         assert (post.kernel, post.num_chains) == (kernel, chains)
     # the paper-scale defaults: Sample-Z's small weight spaces independence + slice, 50-d HMC; MaxEnt-Z HMC
     default = ex.TrialSpec("side_effects", 0)
@@ -389,7 +389,7 @@ def test_trajectory_settings_reach_the_sampler(monkeypatch):
                            (ex.SamplerSettings(4, 10, 1, 8, warmup_max_leapfrog=64, trajectory_length=3.0), (64, 3.0))):
         spec = ex.TrialSpec("side_effects", 0, **dict(TINY, sample_z_sampler=settings))
         with pytest.raises(RuntimeError, match="captured"):
-            trials._posterior(spec, ex.trial_instance(spec), "sample_z")
+            trials.trial_posterior(spec, ex.trial_instance(spec), "sample_z")
         assert (seen[-1]["warmup_max_leapfrog"], seen[-1]["trajectory_length"]) == want
     with pytest.raises(ValueError, match="trajectory_length"):
         ex.SamplerSettings(4, 10, 1, 8, trajectory_length=float("inf"))
