@@ -20,6 +20,7 @@ __all__ = [
     "ProxyCounts",
     "RiskMeasure",
     "QueryStrategy",
+    "QueryKind",
     "Condition",
     "QueryEvent",
     "TerrainName",
@@ -30,6 +31,7 @@ __all__ = [
     "PROXY_COUNTS",
     "RISK_MEASURES",
     "STRATEGIES",
+    "QUERY_KINDS",
     "CONDITIONS",
     "ALL_CONDITIONS",
     "EVENTS",
@@ -97,6 +99,14 @@ class QueryStrategy(StrEnum):
     RANDOM = "random"
 
 
+class QueryKind(StrEnum):
+    """What the designer is asked to choose among (docs/spec.md section 7): paths on the query
+    map, or the proxy rewards they might have written for the training map (Active IRD)."""
+
+    PATHS = "paths"
+    PROXIES = "proxies"
+
+
 class Condition(StrEnum):
     """Lavaland's conditions (docs/spec.md section 5): the paper's four, then pot_of_gold."""
 
@@ -150,6 +160,7 @@ STATISTICS: tuple[str, ...] = values(RiskStatistic)
 PROXY_COUNTS: tuple[str, ...] = values(ProxyCounts)
 RISK_MEASURES: tuple[str, ...] = values(RiskMeasure)
 STRATEGIES: tuple[str, ...] = values(QueryStrategy)
+QUERY_KINDS: tuple[str, ...] = values(QueryKind)
 ALL_CONDITIONS: tuple[str, ...] = values(Condition)
 CONDITIONS: tuple[str, ...] = ALL_CONDITIONS[:4]
 """The paper's four conditions (every experiment iterates these); ``ALL_CONDITIONS`` adds pot_of_gold."""
