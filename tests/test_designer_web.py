@@ -1,7 +1,9 @@
 """The designer's web server without ROS or a browser: state endpoint, live pushes, the checks
 that keep bad or stale clicks from ever reaching the node's answer callback, and the caps that
 keep hostile clients from breaking or tying up the server (oversized and deeply nested bodies,
-slowloris connections, oversized WebSocket messages, exceptions in a handler)."""
+slowloris connections, oversized WebSocket messages, exceptions in a handler); options named by
+letters in every message, no sampler statistics in the thank-you line, the end state pushed
+before the server stops, and a Gaussian-feature world's posterior shown per terrain."""
 
 from __future__ import annotations
 
@@ -14,10 +16,13 @@ import urllib.error
 import urllib.request
 from typing import Any, Iterator
 
+import numpy as np
 import pytest
 import tornado.websocket
 
-from ird_ros.web import limits
+from ird_core.experiments.posterior_terrain import terrain_spreads
+from ird_core.worlds import lavaland
+from ird_ros.web import limits, terrain_view
 from ird_ros.web.server import WEB_DIR, WebDesigner, is_loopback
 
 WORLD = {"height": 3, "width": 4, "class_names": ["dirt", "grass", "target", "lava"],
@@ -31,6 +36,13 @@ def record(query_id: int, chosen: int = -1, who: str = "") -> dict[str, Any]:
             "option_features": [[2.0, 1.0, 0.0, 0.0], [2.0, 1.0, 0.0, 0.0]],
             "information_gain": 0.25, "chosen": chosen, "beta": 1.0 if chosen >= 0 else 0.0,
             "answered_by": who, "num_answers": 1 if chosen >= 0 else 0, "stamp": 2.0}
+
+
+THANK_YOU = "Thank you: Option {letter} recorded for question #{query}; Rob's beliefs are updated."
+# What the inference node's /ird/answer says on success (sampler statistics the page must not show).
+NODE_SUCCESS = ("query 7: option 1 by web; 2 answers, acceptance 0.31, maxent_z, 400 samples, R-hat 1.012, "
+                "ESS 812 (converged)")
+SAMPLER_WORDS = ("R-hat", "ESS", "acceptance", "samples", "maxent", "option 1")
 
 
 class FakeNode:
@@ -128,7 +140,7 @@ def test_state_endpoint_follows_the_node(web: WebDesigner) -> None:
 def test_accepted_answer_calls_the_node_once(web: WebDesigner, node: FakeNode) -> None:
     web.show_query(record(7))
     status, reply = answer(web, 7, 1)
-    assert (status, reply) == (200, {"ok": True, "message": "posterior re-sampled"})
+    assert (status, reply) == (200, {"ok": True, "message": THANK_YOU.format(letter="B", query=7)})
     assert node.calls == [(7, 1)]
     # A second click on the answered query (before or after the node's record arrives).
     status, reply = answer(web, 7, 0)
@@ -136,6 +148,30 @@ def test_accepted_answer_calls_the_node_once(web: WebDesigner, node: FakeNode) -
     web.show_answer(record(7, chosen=1, who="web"))
     status, reply = answer(web, 7, 1)
     assert status == 409 and "already answered" in reply["message"] and "by web" in reply["message"]
+    assert node.calls == [(7, 1)]
+
+
+def test_the_thank_you_names_the_option_by_its_letter_without_sampler_statistics(web: WebDesigner,
+                                                                                node: FakeNode) -> None:
+    web.show_query(record(7))
+    node.reply = (True, NODE_SUCCESS)
+    status, reply = answer(web, 7, 1)
+    assert status == 200 and reply == {"ok": True, "message": THANK_YOU.format(letter="B", query=7)}
+    for word in SAMPLER_WORDS:
+        assert word not in reply["message"], word
+
+
+def test_refusals_name_options_by_letters(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    status, reply = answer(web, 7, 2)
+    assert status == 400 and reply["message"] == "chosen: Option C is out of range: query 7 has 2 options (A..B)"
+    assert answer(web, 7, 1)[0] == 200
+    status, reply = answer(web, 7, 0)  # accepted from this page: named by the letter accepted
+    assert status == 409 and "(Option B)" in reply["message"] and "option 1" not in reply["message"]
+    web.show_query(record(8))
+    web.show_answer(record(8, chosen=0, who="simulated"))
+    status, reply = answer(web, 8, 1)
+    assert status == 409 and "(Option A, by simulated)" in reply["message"]
     assert node.calls == [(7, 1)]
 
 
@@ -185,7 +221,7 @@ def test_double_click_while_the_first_is_in_flight(web: WebDesigner, node: FakeN
     assert status == 409 and "already being sent" in reply["message"]
     node.gate.set()
     thread.join(30.0)
-    assert first == [(200, {"ok": True, "message": "posterior re-sampled"})]
+    assert first == [(200, {"ok": True, "message": THANK_YOU.format(letter="A", query=7)})]
     assert node.calls == [(7, 0)]
     assert request(web, "/state")[1]["pending"] == []
 
@@ -239,6 +275,71 @@ def test_websocket_pushes_every_change(web: WebDesigner) -> None:
     assert seen[0]["version"] < seen[1]["version"] < seen[2]["version"]
 
 
+def test_the_end_state_reaches_the_page_before_the_server_stops(node: FakeNode) -> None:
+    server = WebDesigner("127.0.0.1", 0, node)
+    server.start()
+    server.show_world(WORLD)
+    server.show_query(record(7))
+
+    async def scenario() -> tuple[list[dict[str, Any]], Any]:
+        conn = await tornado.websocket.websocket_connect(server.url.replace("http", "ws") + "ws")
+        seen = [json.loads(await conn.read_message())]
+        await asyncio.get_running_loop().run_in_executor(None, server.stop)
+        while (message := await conn.read_message()) is not None:
+            seen.append(json.loads(message))
+        return seen, conn.close_code
+
+    try:
+        seen, code = asyncio.run(asyncio.wait_for(scenario(), 30.0))
+    finally:
+        server.stop()
+    assert seen[0]["finished"] is None and seen[0]["query"]["query_id"] == 7
+    assert seen[-1]["finished"] == "graph stopped" and seen[-1]["query"] is None and code == 1001
+
+
+def test_a_finished_mission_closes_the_question(web: WebDesigner, node: FakeNode) -> None:
+    web.show_query(record(7))
+    web.finish("mission finished")
+    state = request(web, "/state")[1]
+    assert state["finished"] == "mission finished" and state["query"] is None
+    status, reply = answer(web, 7, 0)
+    assert status == 409 and reply["message"].startswith("finished: mission finished")
+    assert node.calls == []
+
+
+def test_a_gaussian_world_posterior_is_shown_per_terrain(web: WebDesigner) -> None:
+    from ird_ros.conversions import PosteriorData
+    from ird_ros.nodes.designer import posterior_dict
+
+    inst = lavaland.make_instance("latent_raw", 4, size=8, horizon=10)
+    assert inst.feature_names[0] == "obs_00"
+    samples = np.random.default_rng(0).normal(size=(40, len(inst.feature_names)))
+    post = PosteriorData(samples=samples, feature_names=tuple(inst.feature_names), proxy_weights=inst.proxy_weights,
+                         method="maxent_z", beta=1.0, prior_sigma=1.0, acceptance_rate=0.5, r_hat_max=1.0,
+                         ess_min=100.0, num_chains=4, seed=0, converged=True)
+    # what the node knows: /world/proxy's condition, seed, horizon, test start and /world/terrain
+    made = terrain_view.gaussian_instance("latent_raw", 4, inst.test_labels, inst.terrain_names, inst.train_horizon,
+                                          inst.test_start, inst.feature_names)
+    assert made is not None
+    web.show_posterior(posterior_dict(post, 0, 3.0, instance=made), None)
+    shown = request(web, "/state")[1]["posterior"]
+    assert shown["feature_names"] == ["dirt", "grass", "target", "lava"] and shown["features"] == "terrains"
+    spreads = terrain_spreads(samples, inst)
+    assert shown["mean"] == pytest.approx([row["mean_reward"] for row in spreads.values()])
+    assert shown["std"] == pytest.approx([row["sd_of_mean_reward"] for row in spreads.values()])
+    assert not any(name.startswith("obs_") for name in shown["feature_names"])
+    # what was published must match the instance made again: another seed's terrain does not
+    other = lavaland.make_instance("latent_raw", 5, size=8, horizon=10)
+    assert terrain_view.gaussian_instance("latent_raw", 4, other.test_labels, inst.terrain_names,
+                                          inst.train_horizon, inst.test_start, inst.feature_names) is None
+    assert terrain_view.gaussian_instance("side_effects", 4, inst.test_labels, inst.terrain_names,
+                                          inst.train_horizon, inst.test_start, inst.feature_names) is None
+    # and when it cannot be made again, the page is told the rows are observation dimensions
+    said = posterior_dict(post, 0, 3.0, observations=True)
+    assert said["feature_names"][0] == "obs_00" and said["features"] == "observations"
+    assert "observation dimensions, not terrains" in said["feature_note"]
+
+
 def test_foreign_host_header_is_refused_on_loopback(web: WebDesigner) -> None:
     status, _ = request(web, "/state", host="evil.example:80")
     assert status == 403
@@ -277,6 +378,7 @@ def test_an_oversized_body_is_refused_with_413_naming_the_limit(web: WebDesigner
     status, reply = request(web, "/answer", raw=json.dumps({"query_id": 7, "chosen": 0, "pad": padding}).encode())
     assert status == 413 and reply["ok"] is False
     assert reply["message"].startswith("body:") and str(limits.MAX_BODY_BYTES) in reply["message"]
+    assert limits.MAX_BODY_BYTES == 64 * 1024 and "the limit is 64 KiB" in reply["message"]
     # a body announced far beyond the limit: refused from the header alone, nothing of it read
     head = (b"POST /answer HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
             b"Content-Length: %d\r\n\r\n" % (100 * limits.MAX_BODY_BYTES))

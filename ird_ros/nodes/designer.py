@@ -22,7 +22,11 @@ Records stamped before the current ``/world/terrain`` belong to a forgotten worl
   (``answered_by: "web"``) with ``Client.call`` from the web server's thread (the executor keeps
   spinning in the main thread and completes the call). Contract: the dicts of
   :mod:`ird_ros.bags.rounds` (``record_dict``) and :func:`world_dict`, :func:`posterior_dict`,
-  :func:`risk_dict` and :func:`plan_dict` here.
+  :func:`risk_dict` and :func:`plan_dict` here. In a Gaussian-feature world (latent conditions)
+  the posterior is shown per terrain, not per observation dimension (:mod:`ird_ros.web.terrain_view`:
+  the world's instance is made again from ``/world/proxy`` and ``/world/terrain``). The page
+  names options by letters and never shows sampler statistics after an answer (they are logged);
+  when the node shuts down the page is told the graph stopped.
 
 The node never blocks an executor callback: simulated answers are ``call_async`` with a done
 callback. Every callback runs in ``ird_ros.runtime.guard``'s guard: whatever a message raises is
@@ -51,6 +55,8 @@ from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.runtime.offload import BUSY_PREFIX, service_qos
 from ird_ros.stamps import stamp_ns, stamp_seconds
+from ird_ros.web import terrain_view
+from ird_ros.web.page_state import option_letter
 
 __all__ = ["DesignerNode", "DesignerMode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict",
            "plan_dict", "main"]
@@ -90,12 +96,20 @@ def world_dict(terrain: conv.TerrainGridData, start: tuple[int, int] | None, sta
             "stamp": stamp}
 
 
-def posterior_dict(post: conv.PosteriorData, num_answers: int, stamp: float) -> dict[str, Any]:
-    """The page's posterior summary: per-feature mean and standard deviation of the samples."""
-    return {"feature_names": list(post.feature_names), "mean": post.samples.mean(axis=0).tolist(),
-            "std": post.samples.std(axis=0).tolist(), "num_samples": int(post.samples.shape[0]),
-            "num_answers": int(num_answers), "method": post.method, "converged": bool(post.converged),
-            "r_hat_max": float(post.r_hat_max) if np.isfinite(post.r_hat_max) else None, "stamp": stamp}
+def posterior_dict(post: conv.PosteriorData, num_answers: int, stamp: float, *, instance: Any = None,
+                   observations: bool = False) -> dict[str, Any]:
+    """The page's posterior summary: per-feature mean and standard deviation of the samples; per
+    terrain with ``instance`` (a Gaussian world's, :func:`ird_ros.web.terrain_view.terrain_posterior`),
+    or per observation dimension said as such with ``observations``."""
+    out = {"feature_names": list(post.feature_names), "mean": post.samples.mean(axis=0).tolist(),
+           "std": post.samples.std(axis=0).tolist(), "num_samples": int(post.samples.shape[0]),
+           "num_answers": int(num_answers), "method": post.method, "converged": bool(post.converged),
+           "r_hat_max": float(post.r_hat_max) if np.isfinite(post.r_hat_max) else None, "stamp": stamp}
+    if instance is not None:
+        out.update(terrain_view.terrain_posterior(post.samples, instance))
+    elif observations:
+        out.update(terrain_view.observation_note(post.feature_names))
+    return out
 
 
 def risk_dict(costs: np.ndarray, stamp: float, plan: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -131,6 +145,8 @@ class DesignerNode(GuardedNode):
         self.posterior: RewardPosterior | None = None
         self.risk: OccupancyGrid | None = None
         self.plan_info: PlanInfo | None = None
+        self._instance_key: tuple[Any, ...] | None = None  # what the Gaussian world's instance was made of
+        self._instance: Any = None
         self._in_flight: set[tuple[int, int]] = set()  # (query_id, proposal stamp) being answered
         self._done: set[tuple[int, int]] = set()  # answered by us, or refused for good
         self._shown: set[tuple[int, str, int]] = set()  # (query id, event, stamp) forwarded to the page
@@ -158,7 +174,7 @@ class DesignerNode(GuardedNode):
 
     def destroy_node(self) -> None:
         if self.web is not None:
-            self.web.stop()
+            self.web.stop("graph stopped: the designer node shut down")
         super().destroy_node()
 
     # ------------------------------------------------------------------ inputs
@@ -181,6 +197,7 @@ class DesignerNode(GuardedNode):
     def _on_proxy(self, msg: ProxyReward) -> None:
         self.proxy = msg
         self._show_world()
+        self._show_posterior()  # a Gaussian world's terrain rows need the proxy's condition and seed
         self._update()
 
     def _on_posterior(self, msg: RewardPosterior) -> None:
@@ -294,7 +311,27 @@ class DesignerNode(GuardedNode):
         stamp = self.posterior.header.stamp
         num_answers = next((int(r.num_answers) for r in reversed(self.records)
                             if r.event == QueryEvent.ANSWERED and r.header.stamp == stamp), 0)
-        self.web.show_posterior(posterior_dict(post, num_answers, stamp_seconds(self.posterior.header.stamp)), risk)
+        gaussian = self.proxy is not None and self.proxy.condition in terrain_view.GAUSSIAN_CONDITIONS
+        self.web.show_posterior(posterior_dict(post, num_answers, stamp_seconds(self.posterior.header.stamp),
+                                               instance=self._gaussian_instance(post.feature_names) if gaussian
+                                               else None, observations=gaussian), risk)
+
+    def _gaussian_instance(self, feature_names: Any) -> Any:
+        """The current Gaussian world's Lavaland instance (made again once per world), or None."""
+        proxy, terrain = self.proxy, self.terrain
+        if proxy is None or terrain is None:
+            return None
+        start = (int(proxy.test_start_row), int(proxy.test_start_col))
+        key = (proxy.condition, int(proxy.seed), int(proxy.horizon), start, self.terrain_ns, tuple(feature_names))
+        if key != self._instance_key:
+            self._instance_key = key
+            self._instance = terrain_view.gaussian_instance(proxy.condition, int(proxy.seed), terrain.classes,
+                                                            terrain.class_names, int(proxy.horizon), start,
+                                                            feature_names)
+            if self._instance is None:
+                self.get_logger().warning(f"{proxy.condition} seed {proxy.seed}: the world could not be made again; "
+                                          "the page shows the posterior per observation dimension")
+        return self._instance
 
     def _web_answer(self, query_id: int, chosen: int) -> tuple[bool, str]:
         """``on_answer`` of the page: runs in the web server's thread, blocks until the reply."""
@@ -308,7 +345,13 @@ class DesignerNode(GuardedNode):
             return False, f"the answer failed: {type(exc).__name__}: {exc}"
         if response is None:
             return False, f"timeout: no reply from {names.SRV_ANSWER} within {self.answer_timeout} s"
-        return bool(response.success), str(response.message)
+        if response.success:  # the page says its own thank-you; the sampler's statistics go to the log
+            self.get_logger().info(f"web answer: {response.message}")
+            return True, f"Option {option_letter(int(chosen))} recorded for question #{int(query_id)}"
+        message = str(response.message)
+        if message.startswith("chosen:"):  # the inference node counts options from 0, the page in letters
+            message = f"chosen: Option {option_letter(int(chosen))} is out of range for question #{int(query_id)}"
+        return False, message
 
 
 def main(args: list[str] | None = None) -> int:

@@ -2,7 +2,9 @@
 (sizes, nesting, timeouts), its ``Host`` (``is_loopback``, ``host_of``) and an answer's body
 (``parse_answer``).
 
-A request body is capped at ``MAX_BODY_BYTES`` (answered 413 naming the limit), a JSON body's
+A request body is capped at ``MAX_BODY_BYTES`` (64 KiB; answered 413 naming the limit: a body
+announced up to ``MAX_BODY_READ_BYTES`` is read to its end and dropped first, so the client gets
+the answer rather than a reset, one announced beyond it is refused from its header), a JSON body's
 nesting at ``MAX_JSON_DEPTH`` (400 naming the limit; measured by ``json_depth`` in one pass,
 without recursion, before ``json.loads`` could exhaust the stack), headers at
 ``MAX_HEADER_BYTES``, a WebSocket message at ``MAX_WS_MESSAGE_BYTES``. A connection that sends
@@ -21,6 +23,7 @@ __all__ = [
     "host_of",
     "parse_answer",
     "MAX_BODY_BYTES",
+    "MAX_BODY_READ_BYTES",
     "MAX_JSON_DEPTH",
     "MAX_HEADER_BYTES",
     "MAX_WS_MESSAGE_BYTES",
@@ -33,6 +36,7 @@ __all__ = [
 ]
 
 MAX_BODY_BYTES = 64 * 1024
+MAX_BODY_READ_BYTES = 16 * MAX_BODY_BYTES
 MAX_JSON_DEPTH = 16
 MAX_HEADER_BYTES = 16 * 1024
 MAX_WS_MESSAGE_BYTES = 64 * 1024

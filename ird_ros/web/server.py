@@ -10,7 +10,8 @@ HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.no
     web.show_query(record)             # a new open query
     web.show_answer(record)            # a query got answered (by anyone)
     web.show_posterior(posterior, risk_map)
-    web.stop()
+    web.finish("mission finished")     # optional: the page shows a finished state, no more answers
+    web.stop()                         # sends the end state ("graph stopped") to every open page first
 
 The dict layouts are documented in the ``show_*`` docstrings (built by
 :func:`ird_ros.bags.rounds.record_dict` and ``ird_ros.nodes.designer``'s ``*_dict``; the
@@ -26,11 +27,20 @@ Routes:
   first (well-formed, a known query of the current world, not answered, not already being
   answered, ``chosen`` in range) and refuses with a message that the page shows; only then it
   calls ``on_answer(query_id, chosen) -> (ok, message)`` in a worker thread (it blocks while
-  the posterior is re-sampled) and returns that message. Only JSON bodies are accepted, so a
-  plain HTML form on another site cannot submit an answer.
+  the posterior is re-sampled). An accepted answer is answered with the page's thank-you line
+  (``page_state.thank_you``: the option's letter and the question, no sampler statistics; the
+  callback's message is logged); a refusal with the callback's message. Only JSON bodies are
+  accepted, so a plain HTML form on another site cannot submit an answer.
 - ``GET /ws``: WebSocket; the server sends the whole state after every change.
 
-Caps (``ird_ros.web.limits``): a body over ``max_body`` (64 KiB) is answered 413, JSON nested over
+End: ``finish(text)`` and ``stop()`` set the state's ``finished`` (why the page gets no more
+questions; ``stop`` uses "graph stopped" unless finished before) and push it to every open page
+before the sockets close, so the page shows a finished state instead of reconnecting; a page that
+loses its server without that (a killed process) gives up after a few reconnects and says the
+graph is gone (``static/app.js``). Options are letters (A, B, ...) in every message.
+
+Caps (``ird_ros.web.limits``): a body over ``max_body`` (64 KiB) is answered 413 (read and dropped
+up to 16 times that, refused from its header beyond), JSON nested over
 16 levels 400, both naming the limit; no complete header for ``idle_timeout`` s (slowloris) or no
 body for ``body_timeout`` s: disconnected; WebSocket messages capped and pinged. Every error, a
 handler's exception too, is a JSON ``{"ok": false, "message": ...}`` answer; the server keeps serving.
@@ -62,6 +72,7 @@ import tornado.websocket
 
 from ird_ros.web import limits
 from ird_ros.web.limits import host_of, is_loopback, parse_answer
+from ird_ros.web.page_state import PageState, thank_you
 
 __all__ = ["WebDesigner", "OnAnswer", "WEB_DIR", "is_loopback"]
 
@@ -70,66 +81,6 @@ WEB_DIR = Path(__file__).resolve().parent / "static"
 
 #: The node's answer callback: ``(query_id, chosen) -> (ok, message)``; blocks until answered.
 OnAnswer = Callable[[int, int], "tuple[bool, str]"]
-
-def _option_letter(index: int) -> str:
-    return chr(ord("A") + index) if 0 <= index < 26 else str(index)
-
-
-class _State:
-    """What the page shows; every method is called with the WebDesigner's lock held."""
-
-    def __init__(self) -> None:
-        self.version = 0
-        self.world: dict[str, Any] | None = None
-        self.queries: dict[int, dict[str, Any]] = {}  # query_id -> latest record, this world
-        self.stale: set[int] = set()  # ids of earlier worlds' queries
-        self.pending: set[int] = set()  # ids whose answer is being sent from this page
-        self.accepted: dict[int, int] = {}  # id -> option accepted from this page
-        self.posterior: dict[str, Any] | None = None
-        self.risk_map: dict[str, Any] | None = None
-
-    def history(self) -> list[dict[str, Any]]:
-        answered = [r for r in self.queries.values() if r.get("chosen", -1) >= 0]
-        return sorted(answered, key=lambda r: r["query_id"])
-
-    def open_query(self) -> dict[str, Any] | None:
-        """The newest query not answered (nor accepted from this page)."""
-        open_ids = [q for q, r in self.queries.items() if r.get("chosen", -1) < 0 and q not in self.accepted]
-        return self.queries[max(open_ids)] if open_ids else None
-
-    def snapshot(self) -> dict[str, Any]:
-        return {
-            "version": self.version,
-            "world": self.world,
-            "query": self.open_query(),
-            "pending": sorted(self.pending),
-            "history": self.history(),
-            "posterior": self.posterior,
-            "risk_map": self.risk_map,
-        }
-
-    def refusal(self, query_id: int, chosen: int) -> str | None:
-        """Why the click ``(query_id, chosen)`` must not be sent, or None if it may."""
-        if query_id in self.stale:
-            return f"query_id: query {query_id} belongs to an earlier world; it can no longer be answered"
-        record = self.queries.get(query_id)
-        if record is None:
-            return f"query_id: unknown query {query_id} (no such question was asked on this page)"
-        if record.get("chosen", -1) >= 0:
-            who = record.get("answered_by") or "someone"
-            return (f"query_id: query {query_id} was already answered "
-                    f"(Option {_option_letter(int(record['chosen']))}, by {who}); nothing changed")
-        if query_id in self.accepted:
-            return (f"query_id: query {query_id} was already answered from this page "
-                    f"(Option {_option_letter(self.accepted[query_id])}); nothing changed")
-        if query_id in self.pending:
-            return f"query_id: an answer to query {query_id} is already being sent; wait for the new posterior"
-        num_options = len(record.get("options", ()))
-        if not 0 <= chosen < num_options:
-            return (f"chosen: option {chosen} is out of range: query {query_id} has {num_options} options "
-                    f"(0..{num_options - 1})")
-        return None
-
 
 def _check_host(handler: Any) -> None:
     """Refuse a request whose Host is not a loopback name while bound to loopback."""
@@ -192,7 +143,7 @@ class _AnswerHandler(_Handler):
         self._chunks: list[bytes] = []
         self._size = 0
         length = self.request.headers.get("Content-Length", "")
-        if length.isdigit() and int(length) > self.web.max_body * 16:  # not worth reading: refuse now
+        if length.isdigit() and int(length) > self.web.max_read:  # not worth reading: refuse now
             raise tornado.web.HTTPError(413, self._too_large())
 
     def _too_large(self) -> str:
@@ -260,6 +211,7 @@ class WebDesigner:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {value!r}")
         self.max_body = int(max_body)
+        self.max_read = int(max_body) * (limits.MAX_BODY_READ_BYTES // limits.MAX_BODY_BYTES)
         self.idle_timeout = float(idle_timeout)
         self.body_timeout = float(body_timeout)
         self.host = host
@@ -271,7 +223,7 @@ class WebDesigner:
             self.log.warning(f"designer web page configured on {host}, not loopback: anyone who can "
                              "reach this address can answer the robot's queries (no authentication)")
         self._lock = threading.Lock()
-        self._state = _State()
+        self._state = PageState()
         self._sockets: set[_SocketHandler] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -315,7 +267,7 @@ class WebDesigner:
             websocket_max_message_size=limits.MAX_WS_MESSAGE_BYTES)
         self._server = tornado.httpserver.HTTPServer(
             app, idle_connection_timeout=self.idle_timeout, body_timeout=self.body_timeout,
-            max_body_size=self.max_body * 16, max_header_size=limits.MAX_HEADER_BYTES)
+            max_body_size=self.max_read, max_header_size=limits.MAX_HEADER_BYTES)
         self._server.add_sockets(sockets)
         loop.call_soon(ready.set)
         try:
@@ -324,18 +276,28 @@ class WebDesigner:
             loop.run_until_complete(loop.shutdown_asyncgens())
             loop.close()
 
-    def stop(self) -> None:
-        """Close the server and its connections and join the thread (idempotent)."""
+    def stop(self, reason: str = "graph stopped") -> None:
+        """Tell every open page that the graph ended (``reason``, unless :meth:`finish` gave one),
+        close the server and its connections and join the thread (idempotent)."""
         thread, loop = self._thread, self._loop
         if thread is None or loop is None or not thread.is_alive():
             self._workers.shutdown(wait=False, cancel_futures=True)
             return
+        with self._lock:
+            if self._state.finished is None:
+                self._state.finished = reason
+            self._state.version += 1
 
         async def _shutdown() -> None:
             assert self._server is not None
             self._server.stop()
-            for sock in list(self._sockets):
-                sock.close()
+            message = self.state_json()
+            for sock in list(self._sockets):  # the end state first, then the close
+                try:
+                    await asyncio.wait_for(sock.write_message(message), 2.0)
+                except (tornado.websocket.WebSocketClosedError, TimeoutError):
+                    pass
+                sock.close(1001, "graph stopped")
             await self._server.close_all_connections()
             loop.stop()
 
@@ -396,6 +358,13 @@ class WebDesigner:
                 self._state.risk_map = copy.deepcopy(risk_map)
         self._changed()
 
+    def finish(self, reason: str) -> None:
+        """The graph or mission ended (``reason``, e.g. "mission finished"): the page shows it,
+        stops offering the open question and refuses further answers."""
+        with self._lock:
+            self._state.finished = str(reason)
+        self._changed()
+
     # ------------------------------------------------------------------ state and clicks
 
     def state(self) -> dict[str, Any]:
@@ -447,4 +416,7 @@ class WebDesigner:
             if ok:
                 self._state.accepted[query_id] = chosen
         self._changed()
-        return (200 if ok else 409), bool(ok), str(message)
+        if ok:  # the node's message (sampler statistics) goes to the log, the page gets its line
+            self.log.info(f"designer web page: answer {query_id}/{chosen} accepted: {message}")
+            return 200, True, thank_you(query_id, chosen)
+        return 409, False, str(message)

@@ -5,15 +5,25 @@ private ROS domain; the test asks a question through /ird/query, headless Chromi
 package, driven by Selenium through Debian's chromedriver: nothing is downloaded) loads the
 page, sees the options, clicks one, and the test sees the new posterior on /ird/posterior and
 the answer in the page's history; beside the risk map it says which risk measure the current plan
-(a per-step CVaR plan asked for first) uses. It saves the page as out/designer_web.png.
+(a per-step CVaR plan asked for first) uses. It saves the page as out/designer_web.png. The
+options are letters on the buttons, in the thank-you line (no sampler statistics) and in the
+history; when the designer node stops, the page shows that the graph ended.
+
+Without ROS, against a ``WebDesigner`` of the test: a Gaussian-feature world's posterior is
+shown per terrain, the page shows "graph stopped" when the server stops, and "graph gone" after
+a few failed reconnects when the server's process is killed (no end state sent).
 
 A missing browser or driver fails the test (apt-get install -y chromium chromium-driver).
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any, Iterator
+
+import numpy as np
 
 import pytest
 import yaml
@@ -158,7 +168,10 @@ def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver
         probe.until(lambda: len(probe.posteriors) > seen, "the posterior after the web answer")
         probe.until(lambda: any(r.query_id == query.query_id and r.chosen == 1 and r.answered_by == "web"
                                 for r in probe.records), "the answered record on /ird/queries")
-        assert "Thank you" in message_text(browser, "Thank you")
+        thanks = message_text(browser, "Thank you")
+        assert thanks == f"Thank you: Option B recorded for question #{query.query_id}; Rob's beliefs are updated."
+        for word in SAMPLER_WORDS:
+            assert word not in thanks, word
         WebDriverWait(browser, WAIT).until(lambda d: d.find_elements(By.ID, f"history-{query.query_id}"),
                                            "the answer never appeared in the page's history")
         row = browser.find_element(By.ID, f"history-{query.query_id}").text
@@ -191,5 +204,105 @@ def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver
         shown_query(browser, second.query_id)
         SCREENSHOT.parent.mkdir(exist_ok=True)
         assert browser.save_screenshot(str(SCREENSHOT)), "screenshot failed"
+
+        # The designer node stops: the page shows that the graph ended, not "reconnecting…".
+        assert graph["procs"][-1].stop() == 0
+        finished = finished_text(browser)
+        assert finished.startswith(("Graph stopped", "Graph gone")), finished
+        assert not browser.find_elements(By.CSS_SELECTOR, "button.option:not([disabled])")
     finally:
         probe.ird.close()
+
+
+SAMPLER_WORDS = ("R-hat", "ESS", "acceptance", "samples", "maxent", "option 1")
+
+
+def finished_text(driver: webdriver.Chrome) -> str:
+    """The finished banner's text once it shows (the connection pill no longer says reconnecting)."""
+    WebDriverWait(driver, WAIT).until(
+        lambda d: d.find_element(By.ID, "finished").is_displayed()
+        and "reconnecting" not in d.find_element(By.ID, "connection").text,
+        "the page never showed that the graph ended")
+    return driver.find_element(By.ID, "finished").text
+
+
+WORLD = {"height": 3, "width": 4, "class_names": ["dirt", "grass", "target", "lava", "gold"],
+         "classes": [[0, 0, 1, 2], [0, 3, 1, 0], [1, 1, 0, 0]], "start": [0, 0], "stamp": 1.0}
+QUERY = {"query_id": 3, "event": "proposed", "strategy": "info_gain",
+         "options": [[[0, 0], [0, 1], [0, 2]], [[0, 0], [1, 0], [2, 0]], [[0, 0], [1, 0], [1, 1]]],
+         "feature_names": [f"obs_{i:02d}" for i in range(50)], "option_features": [[0.0] * 50] * 3,
+         "information_gain": 0.25, "chosen": -1, "beta": 0.0, "answered_by": "", "num_answers": 0, "stamp": 2.0}
+
+
+def test_letters_terrains_and_the_end_without_ros(browser: webdriver.Chrome) -> None:
+    """A Gaussian world's posterior per terrain, options A..C, "graph stopped" when the server stops."""
+    from ird_core.worlds import lavaland
+    from ird_ros.conversions import PosteriorData
+    from ird_ros.nodes.designer import posterior_dict
+    from ird_ros.web import terrain_view
+    from ird_ros.web.server import WebDesigner
+
+    inst = lavaland.make_instance("latent_classifier", 2, size=6, horizon=8)
+    made = terrain_view.gaussian_instance("latent_classifier", 2, inst.test_labels, inst.terrain_names,
+                                          inst.train_horizon, inst.test_start, inst.feature_names)
+    assert made is not None
+    samples = np.random.default_rng(1).normal(size=(30, len(inst.feature_names)))
+    post = PosteriorData(samples=samples, feature_names=tuple(inst.feature_names), proxy_weights=inst.proxy_weights,
+                         method="maxent_z", beta=1.0, prior_sigma=1.0, acceptance_rate=0.5, r_hat_max=1.0,
+                         ess_min=100.0, num_chains=4, seed=0, converged=True)
+    web = WebDesigner("127.0.0.1", 0, lambda q, c: (True, "R-hat 1.01"))
+    web.start()
+    try:
+        web.show_world(WORLD)
+        web.show_query(QUERY)
+        web.show_posterior(posterior_dict(post, 0, 3.0, instance=made), None)
+        browser.get(web.url)
+        buttons = shown_query(browser, QUERY["query_id"])
+        assert [b.text.splitlines()[0] for b in buttons] == ["Option A", "Option B", "Option C"]
+        WebDriverWait(browser, WAIT).until(lambda d: "lava" in d.find_element(By.ID, "posterior").text,
+                                           "the posterior table never named the terrains")
+        table = browser.find_element(By.ID, "posterior").text
+        assert table.splitlines()[0].startswith("terrain") and "obs_" not in table
+        assert all(name in table for name in ("dirt", "grass", "target", "lava"))
+        assert "observation dimensions" in browser.find_element(By.ID, "posterior-sub").text
+        browser.execute_script("sendAnswer(arguments[0], 2);", QUERY["query_id"])
+        assert message_text(browser, "Thank you") == \
+            "Thank you: Option C recorded for question #3; Rob's beliefs are updated."
+        web.stop()
+        assert finished_text(browser).startswith("Graph stopped.")
+        assert browser.find_element(By.ID, "connection").text == "graph stopped"
+    finally:
+        web.stop()
+
+
+SERVER_SCRIPT = """
+import sys
+from ird_ros.web.server import WebDesigner
+web = WebDesigner("127.0.0.1", 0, lambda q, c: (True, ""))
+web.start()
+web.show_world({"height": 2, "width": 2, "class_names": ["dirt"], "classes": [[0, 0], [0, 0]], "start": None,
+                "stamp": 1.0})
+print(web.url, flush=True)
+sys.stdin.read()
+"""
+
+
+def test_the_page_says_the_graph_is_gone_when_its_server_dies(browser: webdriver.Chrome) -> None:
+    """A killed server sends no end state: the page retries a few times, then says the graph is gone."""
+    proc = subprocess.Popen([sys.executable, "-c", SERVER_SCRIPT], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            text=True, cwd=REPO)
+    try:
+        assert proc.stdout is not None
+        url = proc.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:"), url
+        browser.get(url)
+        WebDriverWait(browser, WAIT).until(lambda d: d.find_element(By.ID, "connection").text == "live",
+                                           "the page never connected")
+        proc.kill()
+        proc.wait(30)
+        assert finished_text(browser).startswith("Graph gone")
+        assert browser.find_element(By.ID, "connection").text == "graph gone"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)

@@ -9,6 +9,11 @@ const INK = IRD_STYLE.ink, PAPER = IRD_STYLE.paper, NEUTRAL = IRD_STYLE.neutral;
 
 let state = null;
 let socket = null;
+// The end: the server says so (state.finished) before it stops, or the page gives up after
+// MAX_RECONNECTS failed reconnects in a row and says the graph is gone.
+const MAX_RECONNECTS = 5;
+let failedReconnects = 0;
+let ended = null;  // null while the graph runs, else the text of the finished state
 
 const $ = (id) => document.getElementById(id);
 const letter = (k) => String.fromCharCode(65 + k);
@@ -226,7 +231,8 @@ function renderOptions() {
   box.replaceChildren();
   const query = state && state.query;
   if (!query) {
-    box.append(el("p", {class: "sub"}, "No open question. Rob will ask when it is unsure where it is about to drive."));
+    box.append(el("p", {class: "sub"}, state && state.finished ? "No more questions: the graph has ended."
+      : "No open question. Rob will ask when it is unsure where it is about to drive."));
     $("gain").textContent = "";
     return;
   }
@@ -265,7 +271,10 @@ function renderPosterior() {
   const post = state && state.posterior;
   if (!post) { $("posterior-sub").textContent = "No posterior yet."; return; }
   const scale = Math.max(1e-9, ...post.mean.map((m, i) => Math.abs(m) + post.std[i]));
-  table.append(el("tr", {}, el("th", {}, "terrain"), el("th", {}, "reward (mean ± sd)"), el("th", {}, "")));
+  // Gaussian-feature worlds: rows per terrain (the server maps the observation weights), or per
+  // observation dimension, said as such, when it cannot.
+  const rowName = post.features === "observations" ? "observation dimension" : "terrain";
+  table.append(el("tr", {}, el("th", {}, rowName), el("th", {}, "reward (mean ± sd)"), el("th", {}, "")));
   post.feature_names.forEach((name, i) => {
     const m = post.mean[i], s = post.std[i];
     const bar = el("div", {class: "bar-track"},
@@ -278,7 +287,8 @@ function renderPosterior() {
       el("td", {class: "bar-cell"}, bar)));
   });
   const answers = post.num_answers === 1 ? "1 answer" : `${post.num_answers} answers`;
-  $("posterior-sub").textContent = `From the designer's proxy reward and ${answers}; ${post.num_samples} samples (${post.method})` +
+  $("posterior-sub").textContent = (post.feature_note ? `${post.feature_note}. ` : "") +
+    `From the designer's proxy reward and ${answers}; ${post.num_samples} samples (${post.method})` +
     (post.converged === false ? " — sampler NOT converged" : "");
 }
 
@@ -313,6 +323,7 @@ function render(newState) {
   shownQueryId = queryId;
   state = newState;
   document.body.dataset.version = String(state.version);
+  if (state.finished) showFinished(state.finished, "finished");
   renderTitle();
   drawMap();
   drawLegend();
@@ -333,20 +344,42 @@ async function sendAnswer(queryId, chosen) {
       body: JSON.stringify({query_id: queryId, chosen: chosen}),
     });
     const reply = await response.json();
-    showMessage(reply.ok ? `Thank you: Option ${letter(chosen)} recorded for question #${queryId}. ${reply.message}`
-      : `Not recorded: ${reply.message}`, reply.ok ? "ok" : "error");
+    // The server's thank-you names the option by its letter (never the sampler's statistics).
+    showMessage(reply.ok ? reply.message : `Not recorded: ${reply.message}`, reply.ok ? "ok" : "error");
   } catch (err) {
     showMessage(`Not recorded: the server could not be reached (${err}).`, "error");
   }
   if (state) renderOptions();
 }
 
+// The finished state: a banner, the connection pill, no question to answer, no more reconnects.
+function showFinished(text, kind) {
+  if (ended !== null) return;
+  ended = text;
+  $("finished").textContent = kind === "gone" ? text
+    : `${text.charAt(0).toUpperCase()}${text.slice(1)}. Rob asks no more questions; the answers so far are kept.`;
+  $("finished").className = "finished " + kind;
+  $("connection").textContent = kind === "gone" ? "graph gone" : text.split(":")[0];  // "graph stopped"
+  $("connection").className = "connection ended";
+  document.querySelectorAll("button.option").forEach((b) => { b.disabled = true; });
+}
+
 function connect() {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
   socket = new WebSocket(`${scheme}://${location.host}/ws`);
-  socket.onopen = () => { $("connection").textContent = "live"; $("connection").className = "connection online"; };
+  socket.onopen = () => {
+    failedReconnects = 0;
+    if (ended === null) { $("connection").textContent = "live"; $("connection").className = "connection online"; }
+  };
   socket.onmessage = (event) => render(JSON.parse(event.data));
-  socket.onclose = () => {
+  socket.onclose = (event) => {
+    if (ended !== null) return;  // the server said the graph ended: nothing to reconnect to
+    failedReconnects += 1;  // reset by the next open
+    if (failedReconnects > MAX_RECONNECTS) {
+      showFinished(`Graph gone: the designer's server has not answered ${MAX_RECONNECTS} reconnects in a row. ` +
+        "Reload the page once the graph runs again.", "gone");
+      return;
+    }
     $("connection").textContent = "reconnecting…"; $("connection").className = "connection offline";
     setTimeout(connect, 1000);
   };
