@@ -342,14 +342,21 @@ class IrdClient:
         response (``result.response.risk`` / ``risk_level``) says which the plan used."""
         return self.call(names.SRV_PLAN, request, decode=_decode_plan, timeout=timeout)
 
-    def propose_query(self, request: "ProposeQuery.Request", *, timeout: float = 300.0) -> CallResult[Query]:
-        """``/ird/query``: a question to the designer (docs/spec.md section 7). The options are read
-        as cells on the request's map, or (an empty map) on the latest ``/world/test_features``."""
-        if not request.map.layers:
-            self.subscribe(names.TOPIC_TEST_FEATURES)
+    def propose_query(self, request: "ProposeQuery.Request", *, kind: str | None = None,
+                      timeout: float = 300.0) -> CallResult[Query]:
+        """``/ird/query``: a question to the designer (docs/spec.md section 7). ``kind`` (when given)
+        sets ``request.kind``: "paths" (the options are read as cells on the request's map, or, an
+        empty map, on the latest ``/world/test_features``) or "proxies" (each offered proxy's plan,
+        read on the latest ``/world/train_features``; the weights are ``result.response.option_proxies``)."""
+        if kind is not None:
+            request.kind = str(kind)
+        proxies = request.kind == "proxies"
+        topic = names.TOPIC_TRAIN_FEATURES if proxies else names.TOPIC_TEST_FEATURES
+        if proxies or not request.map.layers:
+            self.subscribe(topic)
 
         def decode(response: Any) -> Query:
-            grid = request.map if request.map.layers else self.latest(names.TOPIC_TEST_FEATURES, timeout=timeout)
+            grid = request.map if request.map.layers and not proxies else self.latest(topic, timeout=timeout)
             return self._decode_query(response, grid)
 
         return self.call(names.SRV_QUERY, request, decode=decode, timeout=timeout)

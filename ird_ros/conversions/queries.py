@@ -14,7 +14,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import Path
 
-from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
+from ird_core.vocabulary import QueryEvent, QueryKind, QueryStrategy, parse
 from ird_msgs.msg import QueryRecord
 from ird_ros.bags.rounds import QueryRecordData, event_from_msg
 from ird_ros.conversions.grids import MAP_FRAME, _as_float_array, _check_finite, _check_names, _f, make_header
@@ -52,28 +52,40 @@ def query_record_to_msg(
     num_answers: int = 0,
     stamp: Time | None = None,
     frame_id: str = MAP_FRAME,
+    kind: QueryKind | str = QueryKind.PATHS,
+    option_proxies: np.ndarray | None = None,
 ) -> QueryRecord:
-    """A QueryRecord; ``option_features`` (q, d) with q = ``len(options)``, d = ``len(feature_names)``."""
+    """A QueryRecord; ``option_features`` (q, d) with q = ``len(options)``, d = ``len(feature_names)``;
+    ``kind`` "" = "paths"; ``option_proxies`` (q, p) the offered proxies of a "proxies" query (``None``
+    or empty for "paths")."""
     field = "QueryRecord"
-    kind = parse(QueryEvent, event, f"{field}.event")
+    query_kind = parse(QueryKind, kind or QueryKind.PATHS, f"{field}.kind")
+    proxies = np.zeros((0,)) if option_proxies is None else _as_float_array(f"{field}.option_proxies",
+                                                                            option_proxies, np.float64)
+    if proxies.size and (proxies.ndim != 2 or proxies.shape[0] != len(options)):
+        raise _f(f"{field}.option_proxies", f"expected shape ({len(options)}, p), got {proxies.shape}")
+    _check_finite(f"{field}.option_proxies", proxies)
+    event_kind = parse(QueryEvent, event, f"{field}.event")
     parse(QueryStrategy, strategy, f"{field}.strategy")
     names = _check_names(f"{field}.feature_names", feature_names)
     feats = _as_float_array(f"{field}.option_features", option_features, np.float64)
     if feats.shape != (len(options), len(names)):
         raise _f(f"{field}.option_features", f"expected shape ({len(options)}, {len(names)}), got {feats.shape}")
     _check_finite(f"{field}.option_features", feats)
-    if kind is not QueryEvent.PROPOSED and not 0 <= int(chosen) < len(options):
+    if event_kind is not QueryEvent.PROPOSED and not 0 <= int(chosen) < len(options):
         raise _f(f"{field}.chosen", f"{chosen} is out of range for {len(options)} options")
     msg = QueryRecord()
     msg.header = make_header(stamp, frame_id)
     msg.query_id = int(query_id)
-    msg.event = kind.value
+    msg.event = event_kind.value
     msg.strategy = QueryStrategy(strategy).value
+    msg.kind = query_kind.value
+    msg.option_proxies = array.array("d", np.ascontiguousarray(proxies).tobytes())
     msg.options = list(options)
     msg.feature_names = list(names)
     msg.option_features = array.array("d", np.ascontiguousarray(feats).tobytes())
     msg.information_gain = float(information_gain)
-    msg.chosen = int(chosen) if kind is not QueryEvent.PROPOSED else -1
+    msg.chosen = int(chosen) if event_kind is not QueryEvent.PROPOSED else -1
     msg.beta = float(beta)
     msg.answered_by = str(answered_by)
     msg.num_answers = int(num_answers)

@@ -15,6 +15,14 @@ Lifetime (what "the current world" means):
   the new world's own map before this node received its proxy);
 - query ids are unique for the node's lifetime; ids of forgotten worlds are refused as such.
 
+Query kinds (``ird_core.vocabulary.QueryKind``): a :class:`QueryJob` proposes paths on a query
+map (``ird_core.designer.queries.propose_query``); a :class:`ProxyQueryJob` proposes proxy rewards
+for the evidence's own training world (Active IRD, ``ird_core.designer.proxy_queries``:
+``propose_proxy_query(train_mdp, proxy_mdp, proxy_weights, samples, beta, num_options, strategy,
+seed, observation_model)`` with the evidence job's maps, proxy and observation model;
+:func:`proxy_query_job` validates it). Either query's ``option_features`` are what an answer's
+``ChoiceObservation`` sees, so ``/ird/answer`` is the same for both.
+
 Answers are taken one at a time: while a re-sampling runs (:attr:`WorldEvidence.resampling`) a
 second answer is refused with ``busy`` (nothing changes; the caller answers again after the
 next posterior). :attr:`WorldEvidence.epoch` changes whenever the evidence is replaced, so a
@@ -31,15 +39,19 @@ import numpy as np
 
 from ird_core import posterior as core_inference
 from ird_core.checks import check_real
+from ird_core.designer import proxy_queries as core_proxy_queries
 from ird_core.designer import queries as core_queries
 from ird_core.mdp import GridMDP
-from ird_core.vocabulary import QueryStrategy
+from ird_core.posterior import ObservationModel
+from ird_core.vocabulary import QueryKind, QueryStrategy, parse
 from ird_ros.jobs.inference import InferenceJob
+from ird_ros.jobs.work import check_query_work
 
 if TYPE_CHECKING:  # the options are nav_msgs/Path messages, built by the node; no ROS import here
     from nav_msgs.msg import Path
 
-__all__ = ["QueryJob", "ProposalRecord", "OpenQuery", "WorldEvidence", "run_query", "resample_seed"]
+__all__ = ["QueryJob", "ProxyQueryJob", "ProposalRecord", "OpenQuery", "WorldEvidence", "run_query",
+           "proxy_query_job", "resample_seed"]
 
 
 @dataclass(frozen=True)
@@ -54,9 +66,66 @@ class QueryJob:
     seed: int
 
 
-def run_query(job: QueryJob) -> core_queries.Query:
+@dataclass(frozen=True)
+class ProxyQueryJob:
+    """A validated /ird/query request of kind "proxies" (``propose_proxy_query``'s arguments)."""
+
+    train_mdp: GridMDP
+    proxy_mdp: GridMDP | None
+    proxy_weights: np.ndarray
+    samples: np.ndarray
+    beta: float
+    num_options: int
+    strategy: QueryStrategy
+    seed: int
+    observation_model: ObservationModel
+
+
+def run_query(job: "QueryJob | ProxyQueryJob") -> "core_queries.Query | core_proxy_queries.ProxyQuery":
     """The worker-process job of /ird/query (raises ``NotEnoughCandidates`` naming num_options)."""
+    if isinstance(job, ProxyQueryJob):
+        # The node's work check bounds the candidates (one per sample), not the library's default.
+        return core_proxy_queries.propose_proxy_query(
+            job.train_mdp, job.proxy_mdp, job.proxy_weights, job.samples, job.beta, job.num_options, job.strategy,
+            job.seed, job.observation_model, max_candidates=max(core_proxy_queries.DEFAULT_MAX_CANDIDATES,
+                                                                len(job.samples) + 1))
     return core_queries.propose_query(job.query_mdp, job.samples, job.beta, job.num_options, job.strategy, job.seed)
+
+
+def proxy_query_job(evidence: "WorldEvidence", *, map_empty: bool, start: tuple[int, int], horizon: int,
+                    num_options: int, strategy: str, seed: int, beta: float, max_options: int,
+                    max_query_work: float) -> ProxyQueryJob:
+    """The job of a "proxies" request on ``evidence`` (the node has checked that a posterior exists).
+
+    The options are planned on the evidence's training map, so ``map`` must be empty and
+    ``start_row``, ``start_col``, ``horizon`` 0; ``num_options`` 0 = 2 (at most ``max_options``);
+    ``strategy`` "" = ``info_gain``. The work is ``ird_ros.jobs.work.check_query_work`` on the
+    training map (one candidate per sample, each one MDP pass).
+
+    Raises:
+        ValueError: naming the field.
+    """
+    job, posterior = evidence.job, evidence.posterior
+    assert job is not None and posterior is not None
+    if not map_empty:
+        raise ValueError("map: must be empty for kind 'proxies' (the options are planned on the training map)")
+    for name, value in zip(("start_row", "start_col"), start):
+        if value != 0:
+            raise ValueError(f"{name}: must be 0 for kind 'proxies' (the training map's start), got {value}")
+    if horizon != 0:
+        raise ValueError(f"horizon: must be 0 for kind 'proxies' (the training map's horizon), got {horizon}")
+    num_options = num_options or 2
+    if not 2 <= num_options <= max_options:
+        raise ValueError(f"num_options: must be in [2, max_options={max_options}], got {num_options}")
+    chosen = parse(QueryStrategy, strategy or QueryStrategy.INFO_GAIN, "strategy")
+    if chosen not in (QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM):
+        raise ValueError(f"strategy: kind 'proxies' is chosen by 'info_gain' or 'random', got {strategy!r}")
+    train = job.train_mdp
+    samples = posterior.samples
+    check_query_work(len(samples), train.height, train.width, train.horizon, train.num_features, num_options,
+                     max_query_work)
+    return ProxyQueryJob(train, job.proxy_mdp, job.proxy_weights, samples, beta, num_options, chosen, seed,
+                         job.observation_model)
 
 
 def resample_seed(seed: int, num_answers: int) -> int:
@@ -74,6 +143,9 @@ class ProposalRecord:
         feature_names: the d feature names (the posterior's).
         option_features: (q, d) feature counts of the options.
         information_gain: expected information gain of the answer, nats.
+        kind: what the designer chooses among (paths on the query map, or proxies whose
+            ``options`` are their plans on the training map).
+        option_proxies: ``(q, p)`` the offered proxy weights (kind "proxies"), else ``None``.
     """
 
     strategy: QueryStrategy
@@ -81,6 +153,8 @@ class ProposalRecord:
     feature_names: tuple[str, ...]
     option_features: np.ndarray
     information_gain: float
+    kind: QueryKind = QueryKind.PATHS
+    option_proxies: np.ndarray | None = None
 
 
 @dataclass
@@ -88,7 +162,7 @@ class OpenQuery:
     """A proposed query of the current evidence and how the record shows it."""
 
     query_id: int
-    query: core_queries.Query
+    query: core_queries.Query | core_proxy_queries.ProxyQuery
     feature_names: tuple[str, ...]
     record: ProposalRecord
     answered: bool = False
@@ -101,6 +175,8 @@ class WorldEvidence:
 
     job: InferenceJob | None = None  # the job of the proxy observation; None = no evidence
     feature_names: tuple[str, ...] = ()
+    proxy_feature_names: tuple[str, ...] = ()  # the proxy's p features (training or proxy map layers)
+    train_geometry: tuple[float, tuple[float, float]] = (1.0, (0.0, 0.0))  # training map resolution, origin
     world_stamp: tuple[int, int] | None = None  # training map's header stamp (sec, nanosec)
     posterior: core_inference.Posterior | None = None
     answers: list[core_inference.ChoiceObservation] = field(default_factory=list)
@@ -117,10 +193,15 @@ class WorldEvidence:
         return None if self.job is None else self.job.observation_model
 
     def reset(self, job: InferenceJob, posterior: core_inference.Posterior, feature_names: tuple[str, ...],
-              world_stamp: tuple[int, int]) -> None:
-        """New evidence: the proxy of ``job`` (its posterior ``posterior``), no answers."""
+              world_stamp: tuple[int, int], proxy_feature_names: tuple[str, ...] | None = None,
+              train_geometry: tuple[float, tuple[float, float]] = (1.0, (0.0, 0.0))) -> None:
+        """New evidence: the proxy of ``job`` (its posterior ``posterior``), no answers; the proxy's
+        feature names (``None``: ``feature_names``) and the training map's resolution and origin
+        (where a proxy query's plans are drawn)."""
         self._retire()
         self.job, self.posterior, self.feature_names, self.world_stamp = job, posterior, feature_names, world_stamp
+        self.proxy_feature_names = feature_names if proxy_feature_names is None else tuple(proxy_feature_names)
+        self.train_geometry = train_geometry
 
     def forget(self) -> None:
         """No evidence (a new world)."""
@@ -143,7 +224,7 @@ class WorldEvidence:
             return True
         return False
 
-    def add_query(self, query: core_queries.Query, record: ProposalRecord) -> int:
+    def add_query(self, query: "core_queries.Query | core_proxy_queries.ProxyQuery", record: ProposalRecord) -> int:
         """Register a proposal; returns its id."""
         qid = self.next_id
         self.next_id += 1

@@ -61,6 +61,12 @@ Questions to the designer (docs/spec.md section 7; the evidence's lifetime is do
   :func:`ird_ros.jobs.work.query_work`) and one sample's plan table (``worker_memory_mb``) before
   it is queued. Too few distinct candidate paths (every sample plans the same) is
   ``success: false`` naming ``num_options``.
+- ``kind`` "proxies" (Active IRD; "" or "paths" is the path query above; any other is refused
+  naming ``kind``): the options are proxy rewards for the evidence's training world, from
+  ``proxy_queries.propose_proxy_query`` with the evidence job's maps, proxy and observation
+  model (:func:`ird_ros.jobs.inference_queries.proxy_query_job`: ``map`` empty, start and
+  ``horizon`` 0); ``options`` are each proxy's plan on the training map, ``option_proxies`` their
+  weights, ``option_features`` their behaviour counts, which an answer's ChoiceObservation uses.
 - ``/ird/answer`` (AnswerQuery) adds ``ChoiceObservation(option_features, chosen, beta)`` to the
   evidence and re-samples ``sample_joint_posterior([proxy] + answers, ..., seed=
   resample_seed(seed, n), initial=<current posterior>)`` (warm start), returns it and publishes it
@@ -85,7 +91,7 @@ from ird_core import planning as core_planning
 from ird_core.checks import MAX_ABS_FEATURE, PRIOR_SIGMA_RANGE
 from ird_core.mdp import GridMDP
 from ird_core.posterior import ObservationModel, Posterior
-from ird_core.vocabulary import PROXY_COUNTS, QueryEvent, QueryStrategy, parse
+from ird_core.vocabulary import PROXY_COUNTS, QueryEvent, QueryKind, QueryStrategy, parse
 from ird_msgs.msg import FeatureGrid, ProxyReward, QueryRecord, RewardPosterior
 from ird_msgs.srv import AnswerQuery, InferReward, ProposeQuery
 from ird_ros import conversions as conv
@@ -94,7 +100,8 @@ from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
 from ird_ros.graph import names
 from ird_ros.jobs.inference import (InferenceJob, ResampleJob, observation_model, run_inference, run_resample,
                                     sampler_settings)
-from ird_ros.jobs.inference_queries import ProposalRecord, QueryJob, WorldEvidence, resample_seed, run_query
+from ird_ros.jobs.inference_queries import (ProposalRecord, ProxyQueryJob, QueryJob, WorldEvidence, proxy_query_job,
+                                            resample_seed, run_query)
 from ird_ros.jobs.work import check_query_work
 from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import Arrivals, StartupError, exit_process, run_node
@@ -174,7 +181,8 @@ def _record_msg(query_id: int, record: ProposalRecord, event: QueryEvent,
     return conv.query_record_to_msg(
         query_id=query_id, event=event, strategy=record.strategy, options=record.options,
         feature_names=record.feature_names, option_features=record.option_features,
-        information_gain=record.information_gain, num_answers=num_answers, stamp=stamp, **answer)
+        information_gain=record.information_gain, num_answers=num_answers, stamp=stamp, kind=record.kind,
+        option_proxies=record.option_proxies, **answer)
 
 
 def _publish_result(node: "InferenceNode", posterior: Posterior, job: InferenceJob,
@@ -265,7 +273,10 @@ class InferenceNode(GuardedNode):
             self.get_logger().error(response.message)
             return response
         self._pub.publish(msg)
-        self.evidence.reset(job, posterior, layers, stamp_key(req.training_map.header.stamp))
+        info = req.training_map.info
+        self.evidence.reset(job, posterior, layers, stamp_key(req.training_map.header.stamp),
+                            None if grid_is_empty(req.proxy_map) else tuple(req.proxy_map.layers),
+                            (float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y))))
         response.success = True
         response.posterior = msg
         model = job.observation_model
@@ -303,10 +314,18 @@ class InferenceNode(GuardedNode):
             return found[1]
         raise _MapMissing(f"map: empty, and no test map with the posterior's features {list(names_)} was received")
 
-    def validate_query(self, req: ProposeQuery.Request) -> tuple[QueryJob, conv.FeatureGridData]:
-        """The worker job of a query request and its map (``ValueError`` naming the field)."""
+    def validate_query(self, req: ProposeQuery.Request
+                       ) -> tuple[QueryJob | ProxyQueryJob, conv.FeatureGridData | None]:
+        """The worker job of a query request and its map, ``None`` for kind "proxies" (``ValueError``
+        naming the field)."""
+        kind = parse(QueryKind, req.kind or QueryKind.PATHS, "kind")
         if self.evidence.posterior is None:
             raise ValueError("evidence: no posterior for the current world: call /ird/infer first")
+        if kind is QueryKind.PROXIES:
+            return proxy_query_job(self.evidence, map_empty=grid_is_empty(req.map),
+                                   start=(req.start_row, req.start_col), horizon=int(req.horizon), num_options=int(req.num_options), strategy=req.strategy,
+                                   seed=int(req.seed), beta=self.answer_beta, max_options=self.max_options,
+                                   max_query_work=self.max_query_work), None
         grid = self._query_map(req)
         h, w, d = grid.shape
         if h * w * d > self.max_map_values:
@@ -355,20 +374,26 @@ class InferenceNode(GuardedNode):
         if ev.epoch != epoch:
             response.success, response.message = False, "the evidence was replaced (new world or /ird/infer) meanwhile"
             return response
-        h, w, _ = grid.shape
-        stamp = conv.now_stamp(self)
-        paths = conv.options_to_paths(query.option_cells, resolution=grid.resolution, origin=grid.origin,
-                                      height=h, width=w, stamp=stamp)
+        kind, proxies, stamp = QueryKind.PATHS, getattr(query, "proxies", None), conv.now_stamp(self)
+        if grid is None:  # proxies: their plans on the evidence's training map
+            kind, (resolution, origin), (h, w) = QueryKind.PROXIES, ev.train_geometry, job.train_mdp.features.shape[:2]
+        else:
+            resolution, origin, (h, w, _) = grid.resolution, grid.origin, grid.shape
+        paths = conv.options_to_paths(query.option_cells, resolution=resolution, origin=origin, height=h, width=w,
+                                      stamp=stamp)
         record = ProposalRecord(QueryStrategy(query.strategy), tuple(paths), ev.feature_names, query.option_features,
-                                float(query.information_gain))
+                                float(query.information_gain), kind, proxies)
         qid = ev.add_query(query, record)
         self._queries_pub.publish(_record_msg(qid, record, QueryEvent.PROPOSED, len(ev.answers), stamp))
         response.success, response.query_id = True, qid
         response.options, response.feature_names = paths, list(ev.feature_names)
         response.option_features = conv.weights_to_flat(query.option_features, field="option_features")
-        response.information_gain = float(query.information_gain)
-        response.message = (f"query {qid}: {query.num_options} options ({query.strategy}, of {query.num_candidates} "
-                            f"candidates), information gain {query.information_gain:.4f} nats")
+        response.information_gain, response.kind = float(query.information_gain), kind.value
+        if proxies is not None:
+            response.option_proxies = conv.weights_to_flat(proxies, field="option_proxies")
+            response.proxy_feature_names = list(ev.proxy_feature_names)
+        response.message = (f"query {qid}: {query.num_options} {kind} options ({query.strategy}, of "
+                            f"{query.num_candidates} candidates), information gain {query.information_gain:.4f} nats")
         self.get_logger().info(response.message)
         return response
 
