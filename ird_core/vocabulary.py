@@ -95,6 +95,8 @@ class RiskMeasure(StrEnum):
 class QueryStrategy(StrEnum):
     """How the robot picks the question it asks the designer (docs/spec.md section 7)."""
 
+    EVOI = "evoi"
+    MAX_REGRET = "max_regret"
     INFO_GAIN = "info_gain"
     RANDOM = "random"
 

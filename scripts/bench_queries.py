@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Benchmark: one query round against one ``sample_posterior`` call (docs/spec.md section 7, issue target).
 
-A query round = ``queries.propose_query`` (2 options, info_gain) on the test map from the
-posterior's 1000 samples, a simulated designer's answer (Boltzmann on the true returns), and
+A query round = ``queries.propose_query`` (2 options, ``--strategy``, default evoi, among the rich
+candidates of ``ird_core.designer.candidates`` for Rob's per-step plan with the training-features
+baseline) on the test map from the posterior's 1000 samples, a simulated designer's answer (Boltzmann on the true returns), and
 ``posterior.sample_joint_posterior`` re-sampling 1000 draws with the answer added, warm started
 from the previous posterior (``initial=``). Target: round <= 1.2 x one cold ``sample_posterior``
 (same proxy, default sampler settings) on a 15x15 map with T = 30.
@@ -13,7 +14,7 @@ and the split R-hat of every warm-started re-sample (must stay <= 1.1). The verd
 (process time, single-threaded BLAS): other jobs on a shared machine inflate wall time.
 ``--cold-resample`` also times a cold re-sample with the answer, the alternative to warm starting.
 
-    python scripts/bench_queries.py [--condition latent_raw] [--method maxent_z] [--repeats 3] [--seed 0]
+    python scripts/bench_queries.py [--condition latent_raw] [--method maxent_z] [--strategy evoi] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ import numpy as np  # noqa: E402
 
 from ird_core import posterior
 from ird_core.designer import queries  # noqa: E402
+from ird_core.designer.candidates import PlanSettings  # noqa: E402
+from ird_core.experiments.trials import MAIN_BASELINE  # noqa: E402
 from ird_core.worlds import evaluation, lavaland
 
 TARGET_RATIO = 1.2
@@ -46,6 +49,7 @@ def main() -> int:
     parser.add_argument("--condition", default="latent_raw", choices=lavaland.ALL_CONDITIONS)
     parser.add_argument("--method", default="maxent_z", choices=posterior.METHODS)
     parser.add_argument("--seed", type=int, default=0, help="Lavaland instance seed")
+    parser.add_argument("--strategy", default="evoi", choices=queries.STRATEGIES)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--samples", type=int, default=1000)
     parser.add_argument("--size", type=int, default=15)
@@ -64,13 +68,15 @@ def main() -> int:
         extra["proxy_sample_features"] = posterior.proxy_prior_features(inst, posterior.DEFAULT_NUM_PROXY_SAMPLES,
                                                                        args.seed)
     proxy = posterior.ProxyObservation(inst.proxy_weights, train, proxy_features, extra.get("proxy_sample_features"))
+    rob = PlanSettings(MAIN_BASELINE, proxy_features / (inst.train_horizon + 1))
 
     rows = []
     warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is printed instead
     for r in range(args.repeats):
         cold, cold_wall, cold_cpu = timed(posterior.sample_posterior, inst.proxy_weights, train, args.beta,
                                           args.method, args.samples, r, proxy_features=proxy_features, **extra)
-        query, propose_wall, propose_cpu = timed(queries.propose_query, test, cold.samples, args.answer_beta)
+        query, propose_wall, propose_cpu = timed(queries.propose_query, test, cold.samples, args.answer_beta, 2,
+                                                 args.strategy, r, rob)
         returns = np.array([evaluation.true_return(inst.test_labels, cells) for cells in query.option_cells])
         chosen = queries.simulated_answer(returns, args.answer_beta, np.random.default_rng(r))
         evidence = [proxy, posterior.ChoiceObservation(query.option_features, chosen, args.answer_beta)]
@@ -86,7 +92,8 @@ def main() -> int:
         print(f"repeat {r + 1}/{args.repeats} done", flush=True)
 
     print(f"\n{args.condition} (d = {len(inst.feature_names)}), {args.size}x{args.size}, T = {args.horizon}, "
-          f"{args.method}, {args.samples} samples, beta {args.beta:g}, answer beta {args.answer_beta:g}")
+          f"{args.method}, {args.samples} samples, beta {args.beta:g}, answer beta {args.answer_beta:g}, "
+          f"strategy {args.strategy}")
     header = (f"{'rep':>3} {'cold s':>7} {'cold CPU':>8} {'calls':>5} {'R-hat':>6} | {'propose s':>9} {'cands':>5} "
               f"{'IG':>5} | {'warm s':>6} {'calls':>5} {'R-hat':>6} {'ESS':>5} | {'round s':>7} {'round CPU':>9}")
     if args.cold_resample:

@@ -9,7 +9,7 @@ import math
 import pytest
 
 from ird_core import experiments
-from ird_core.experiments import active, active_cli
+from ird_core.experiments import active, active_cli, active_endpoints, active_report
 
 TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4, warm_warmup=5)
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
@@ -34,7 +34,7 @@ def test_trial_is_deterministic_paired_and_complete(gold_trials) -> None:
     for results in gold_trials:
         plans = [(r.strategy, r.num_queries) for r in results]
         assert plans == [("literal", 0), ("oracle", 0)] + [
-            (s, k) for s in active.STRATEGIES for k in active.QUERY_COUNTS]
+            (s, k) for s in active.EXPERIMENT_STRATEGIES for k in active.QUERY_COUNTS]
         by = {(r.strategy, r.num_queries): r for r in results}
         # Paired: zero queries is the same posterior and plan for both strategies.
         assert by["info_gain", 0].cells == by["random", 0].cells
@@ -42,9 +42,12 @@ def test_trial_is_deterministic_paired_and_complete(gold_trials) -> None:
             assert len(r.cells) == TINY["horizon"] + 1
             assert 0 <= r.asked <= r.num_queries and r.answers_correct <= r.asked
             assert math.isnan(r.information_gain) == (r.asked == 0)
-        for s in active.STRATEGIES:
+        for s in active.EXPERIMENT_STRATEGIES:
             asked = [by[s, k].asked for k in active.QUERY_COUNTS]
             assert asked == sorted(asked)
+            # "changed" says whether the answers moved the plan away from the 0-query plan.
+            for k in active.QUERY_COUNTS:
+                assert by[s, k].changed == (by[s, k].cells != by[s, 0].cells)
 
 
 @pytest.mark.timeout(300)
@@ -99,9 +102,9 @@ def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_tria
                 "gold_fraction", "mean_return", "return_ci_low", "return_ci_high", "lava_ci_low", "gold_ci_high"}
     assert required <= set(rows[0])
     keys = [(r["condition"], r["strategy"], r["num_queries"]) for r in rows]
-    assert len(keys) == len(set(keys)) == 2 + len(active.STRATEGIES) * len(active.QUERY_COUNTS)
+    assert len(keys) == len(set(keys)) == 2 + len(active.EXPERIMENT_STRATEGIES) * len(active.QUERY_COUNTS)
     assert {r["num_queries"] for r in rows if r["strategy"] in ("literal", "oracle")} == {"0"}
-    assert {r["strategy"] for r in rows} == {"literal", "oracle", *active.STRATEGIES}
+    assert {r["strategy"] for r in rows} == {"literal", "oracle", *active.EXPERIMENT_STRATEGIES}
     assert all(r["trials"] == "2" for r in rows)
     for name in ("active_trials.csv", "active.md", "active_pot_of_gold.png", "run.json"):
         assert (out / name).is_file()
@@ -115,4 +118,64 @@ def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_tria
         assert float(row["true_return"]) == pytest.approx(r.true_return, abs=1e-5)
         assert row["cells"] == " ".join(f"{a},{b}" for a, b in r.cells)
     text = (out / "active.md").read_text()
-    assert "## pot_of_gold" in text and "info-gain" in text
+    assert "## pot_of_gold" in text and all(s in text for s in active.EXPERIMENT_STRATEGIES)
+    assert "## Goal check" in text and "regret after 1" in text
+    # The report rewritten from its own files (nothing run) is the same report (the csv's returns
+    # are printed to 6 significant digits, so its numbers agree to that precision).
+    text_before, rows_before = text, rows
+    assert active_cli.main(["--report-only", "--out", str(out)]) == 0
+    assert (out / "active.md").read_text() == text_before
+    with (out / "active.csv").open() as fh:
+        rows_after = list(csv.DictReader(fh))
+    assert [r.keys() for r in rows_after] == [r.keys() for r in rows_before]
+    for a, b in zip(rows_after, rows_before):
+        for key in a:
+            try:
+                assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-5, abs=1e-9, nan_ok=True), key
+            except ValueError:
+                assert a[key] == b[key]
+    back = active_report.read_results_csv(out / "active_trials.csv")
+    assert [(r.seed, r.strategy, r.num_queries, r.cells, r.changed) for r in back] == \
+        [(r.seed, r.strategy, r.num_queries, r.cells, r.changed) for r in direct]
+
+
+def test_endpoints_on_hand_made_results() -> None:
+    def result(seed: int, strategy: str, count: int, value: float) -> active.ActiveResult:
+        return active.ActiveResult("side_effects", seed, strategy, count, count, False, True, False, value,
+                                   math.nan, 0, math.nan, ((0, 0),))
+
+    results = [result(0, "oracle", 0, 10.0), result(1, "oracle", 0, 12.0), result(2, "oracle", 0, 11.0),
+               result(0, "evoi", 1, 9.0), result(1, "evoi", 1, 12.0), result(2, "evoi", 1, 8.0),
+               result(0, "random", 1, 7.0), result(1, "random", 1, 11.0), result(2, "random", 1, 8.0)]
+    mean, lo, hi, n = active_endpoints.regret(results, "side_effects", "evoi", 1)
+    assert n == 3 and (mean, lo, hi) == pytest.approx(experiments.t_interval([1.0, 0.0, 3.0]))
+    mean, lo, hi, n = active_endpoints.versus(results, "side_effects", "evoi", "random", 1)
+    assert (mean, lo, hi) == pytest.approx(experiments.t_interval([2.0, 1.0, 0.0]))
+    check = active_endpoints.goal_check(results, active.aggregate(results), ["side_effects"])
+    assert check[0].startswith("- Missed") and "1.00" in check[1]
+
+
+@pytest.mark.timeout(600)
+def test_chunks_merge_into_the_report_of_one_run(tmp_path) -> None:
+    single, merged = tmp_path / "single", tmp_path / "merged"
+    common = ["--workers", "1", "--conditions", "side_effects", *TINY_ARGS]
+    assert active_cli.main(["--trials", "2", "--out", str(single), *common]) == 0
+    chunks = [tmp_path / "a", tmp_path / "b"]
+    assert active_cli.main(["--trials", "1", "--seed", "0", "--out", str(chunks[0]), *common]) == 0
+    assert active_cli.main(["--trials", "1", "--seed", "1", "--out", str(chunks[1]), *common]) == 0
+    assert active_cli.main(["--report-only", "--out", str(merged), "--merge", *map(str, chunks)]) == 0
+
+    def rows(path):
+        with (path / "active.csv").open() as fh:
+            return list(csv.DictReader(fh))
+
+    for a, b in zip(rows(merged), rows(single), strict=True):
+        for key in a:
+            try:
+                assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-5, abs=1e-9, nan_ok=True), key
+            except ValueError:
+                assert a[key] == b[key]
+    text = (merged / "active.md").read_text()
+    assert "seed=0..1 in 2 chunks" in text and "trials=2" in text
+    # Chunks that share a seed are refused.
+    assert active_cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks[0]), str(chunks[0])]) == 2

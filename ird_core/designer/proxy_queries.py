@@ -47,6 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ird_core.checks import check_array, check_int, check_real
+from ird_core.designer.candidates import PlanSettings
+from ird_core.designer.decision import Screen, best_query, evoi_values
 from ird_core.designer.queries import (NotEnoughCandidates, _best_pair, _greedy_extend,
                                        _information_gain_from_scores, simulated_answer)
 from ird_core.mdp import GridMDP, cell_rewards, optimal_paths
@@ -71,7 +73,7 @@ __all__ = [
 #: Largest number of proxies :func:`candidate_proxies` plans (one batched MDP pass each).
 DEFAULT_MAX_CANDIDATES: int = 4096
 #: The strategies of a proxy query (``ird_core.designer.queries``' criteria on behaviour counts).
-_STRATEGIES: tuple[str, ...] = (QueryStrategy.INFO_GAIN.value, QueryStrategy.RANDOM.value)
+_STRATEGIES: tuple[str, ...] = (QueryStrategy.EVOI.value, QueryStrategy.INFO_GAIN.value, QueryStrategy.RANDOM.value)
 #: Decimals the behaviour counts are rounded to when candidates are de-duplicated.
 _DEDUP_DECIMALS: int = 9
 
@@ -245,8 +247,15 @@ def propose_proxy_query(
     num_perturbations: int | None = None,
     perturbation_sigma: float = 1.0,
     max_candidates: int = DEFAULT_MAX_CANDIDATES,
+    test_mdp: GridMDP | None = None,
+    plan: PlanSettings | None = None,
 ) -> ProxyQuery:
     """Propose a ``num_options``-proxy query for the training world from posterior ``samples``.
+
+    ``evoi``: the expected value of the answer for Rob's plan on ``test_mdp``
+    (:func:`ird_core.designer.decision.evoi_values` with the proxies' behaviour counts as the
+    options' features: the answer model is the same Boltzmann choice), exact best pair, then
+    greedily; it needs ``test_mdp`` (and Rob's ``plan`` settings, default no baseline).
 
     ``info_gain``: the exact best pair of candidates by information gain, then greedily the
     candidate that raises the set's gain most (``ird_core.designer.queries``' machinery on the
@@ -264,6 +273,8 @@ def propose_proxy_query(
         seed: ``>= 0``; seeds ``random`` and the perturbations.
         observation_model: how behaviour is counted (the posterior's model).
         num_perturbations, perturbation_sigma, max_candidates: as :func:`candidate_proxies`.
+        test_mdp: the map Rob will drive, ``(H', W', d)``, for ``evoi``.
+        plan: Rob's plan settings on ``test_mdp``, for ``evoi``.
     Returns:
         The :class:`ProxyQuery`; its ``information_gain`` is the set's, for either strategy.
     Raises:
@@ -275,6 +286,8 @@ def propose_proxy_query(
     if parse(QueryStrategy, strategy, "strategy") not in _STRATEGIES:
         raise ValueError(f"strategy: a proxy query is chosen by one of {_STRATEGIES}, got {strategy!r}")
     seed = check_int("seed", seed, 0)
+    if strategy == QueryStrategy.EVOI and not isinstance(test_mdp, GridMDP):
+        raise ValueError("test_mdp: 'evoi' needs the map Rob will drive (a GridMDP)")
     proxies, counts = candidate_proxies(proxy_weights, samples, train_mdp, proxy_mdp,
                                         observation_model=observation_model, num_perturbations=num_perturbations,
                                         perturbation_sigma=perturbation_sigma, seed=seed,
@@ -287,6 +300,10 @@ def propose_proxy_query(
     scores = beta * (counts @ w.T)  # (n, K)
     if strategy == QueryStrategy.RANDOM:
         chosen = [int(i) for i in np.random.default_rng(seed).choice(n, num_options, replace=False)]
+    elif strategy == QueryStrategy.EVOI:
+        assert test_mdp is not None
+        screen = Screen.of_plan(test_mdp, w, (plan or PlanSettings()).cell_rewards(test_mdp, w))
+        chosen, _ = best_query(lambda sets: evoi_values(screen, counts[sets], beta), n, num_options)
     else:
         i, j, _ = _best_pair(scores)
         chosen = _greedy_extend(scores, [i, j], num_options)

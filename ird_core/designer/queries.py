@@ -12,12 +12,18 @@ over queries and samples. It lies in ``[0, log q]``; tiny negative rounding is c
 
 Query proposal (``propose_query``):
 
-- Candidates: the literal (optimal) path of every posterior sample on the query MDP, from one
-  hard-max dynamic program batched over the ``K`` samples (ties broken "stay" first, in
-  ``ird_core.mdp.MOVES`` order, like ``mdp.optimal_path``). Paths with equal feature counts are
-  one candidate: the answer likelihood sees only the feature counts, so such options cannot be
-  told apart (their information gain as a pair is 0). Candidates are ordered by how many samples
-  plan them (most first), ties by first occurrence; each keeps the path of its first sample.
+- Candidates, rich (with Rob's ``PlanSettings``; ``ird_core.designer.candidates``): Rob's
+  current plan, the plans at other risk levels and for clusters of samples, the samples' own
+  optimal paths, detours and deviations of each, distinct by feature counts, bounded.
+- Candidates, the samples' own (``info_gain`` and ``random`` without ``plan``): the literal
+  (optimal) path of every posterior sample on the query MDP, from one hard-max dynamic program
+  batched over the ``K`` samples (ties broken "stay" first, in ``ird_core.mdp.MOVES`` order, like
+  ``mdp.optimal_path``). Paths with equal feature counts are one candidate: the answer likelihood
+  sees only the feature counts, so such options cannot be told apart. Candidates are ordered by
+  how many samples plan them (most first), ties by first occurrence.
+- ``evoi``: the expected value of the answer for the plan Rob will drive, and ``max_regret``: the
+  pair of sample optima with the largest mutual regret (``ird_core.designer.decision``); the best
+  pair exactly, then greedily to ``q`` options.
 - ``info_gain`` with 2 options: the exact best pair over all ``n (n - 1) / 2`` candidate pairs,
   evaluated in memory-bounded blocks from one ``(n, K)`` score matrix. With ``q > 2``: the best
   pair, then greedily the candidate that raises the set's information gain most, until ``q``.
@@ -25,10 +31,10 @@ Query proposal (``propose_query``):
   option never lowers the information gain, so the greedy set is at least as informative as the
   best pair.
 - ``random``: ``q`` distinct candidates uniformly at random (seeded); the baseline.
-- Fewer than ``q`` distinct candidates (every sample plans the same few paths, so no ``q``-option
-  query exists): ``NotEnoughCandidates``, a ``ValueError`` naming ``num_options``. A caller that
-  runs rounds (experiments) catches it and asks nothing: with one candidate every sample agrees on
-  the plan, and no answer could change it.
+- ``propose_oracle_query`` (experiments): the query whose simulated answer leads to the re-plan of
+  highest expected TRUE return; the headroom of one question.
+- Fewer than ``q`` distinct candidates: ``NotEnoughCandidates``, a ``ValueError`` naming
+  ``num_options``. A caller that runs rounds (experiments) catches it and asks nothing.
 
 Simulated designer (``simulated_answer``, ``SimulatedDesigner``): Boltzmann on the TRUE return of
 each option with its own ``beta``, seeded. It takes the returns as an array, so this module knows
@@ -43,6 +49,8 @@ import numpy as np
 from scipy.special import logsumexp
 
 from ird_core.checks import check_array, check_int, check_real
+from ird_core.designer import decision
+from ird_core.designer.candidates import MAX_CANDIDATES, PlanSettings, query_candidates
 from ird_core.mdp import MOVES, GridMDP, successor_table
 from ird_core.vocabulary import STRATEGIES, QueryStrategy, parse
 
@@ -54,6 +62,7 @@ __all__ = [
     "literal_paths",
     "candidate_paths",
     "propose_query",
+    "propose_oracle_query",
     "answer_probabilities",
     "simulated_answer",
     "SimulatedDesigner",
@@ -78,8 +87,10 @@ class Query:
         option_cells: ``q`` read-only ``(T + 1, 2)`` int64 arrays of ``(row, col)`` cells.
         option_features: ``(q, d)`` feature counts ``phi(xi)`` of the options in the query MDP.
         information_gain: nats, under the samples and the ``beta`` the query was proposed with.
-        strategy: one of ``STRATEGIES``.
+        strategy: one of ``STRATEGIES`` (or ``oracle`` for :func:`propose_oracle_query`).
         num_candidates: distinct candidate paths the options were picked from.
+        value: the criterion's score of the set: EVOI (return units), mutual regret, the
+            oracle's expected true return; NaN for ``info_gain`` and ``random``.
     """
 
     option_cells: tuple[np.ndarray, ...]
@@ -87,6 +98,7 @@ class Query:
     information_gain: float
     strategy: str
     num_candidates: int
+    value: float = float("nan")
 
     @property
     def num_options(self) -> int:
@@ -265,50 +277,121 @@ def _greedy_extend(scores: np.ndarray, chosen: list[int], num_options: int) -> l
     return chosen
 
 
+def _query(query_mdp: GridMDP, cells: np.ndarray, features: np.ndarray, chosen: list[int], scores: np.ndarray,
+           strategy: str, value: float = float("nan")) -> Query:
+    """The :class:`Query` of candidates ``chosen``; ``scores`` ``(n, K)`` are ``beta w_k . f_i``."""
+    gain = float(_information_gain_from_scores(scores[chosen].T))
+    paths = []
+    for index in chosen:
+        path = np.array(cells[index], dtype=np.int64)
+        path.setflags(write=False)
+        paths.append(path)
+    option_features = features[chosen]
+    option_features.setflags(write=False)
+    return Query(tuple(paths), option_features, gain, strategy, len(features), value)
+
+
+def _candidates(query_mdp: GridMDP, w: np.ndarray, strategy: str, plan: "PlanSettings | None", num_options: int,
+                max_candidates: int, seed: int):
+    """``(cells (n, T + 1, 2), features (n, d), sample_choice or None)``, at least ``num_options``."""
+    if plan is None and strategy in (QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM):
+        states, features, _ = candidate_paths(query_mdp, w)
+        cells, choice = np.stack(np.divmod(states, query_mdp.width), axis=2), None
+    else:
+        found = query_candidates(query_mdp, w, plan or PlanSettings(), max_candidates=max_candidates, seed=seed)
+        cells, features, choice = found.cells, found.features, found.sample_choice
+    if len(features) < num_options:
+        raise NotEnoughCandidates(f"num_options: {num_options} options requested but the {len(w)} samples give "
+                                  f"only {len(features)} distinct candidate path(s) on the query map")
+    return cells, features, choice
+
+
+def _check_query_arguments(query_mdp: object, samples: object, beta: object, num_options: object,
+                           seed: object) -> tuple[np.ndarray, float, int, int]:
+    if not isinstance(query_mdp, GridMDP):
+        raise ValueError(f"query_mdp: expected a GridMDP, got {type(query_mdp).__name__}")
+    return (check_array("samples", samples, (None, query_mdp.num_features)), check_real("beta", beta, positive=False),
+            check_int("num_options", num_options, 2), check_int("seed", seed, 0))
+
+
 def propose_query(query_mdp: GridMDP, samples: np.ndarray, beta: float, num_options: int = 2,
-                  strategy: str = "info_gain", seed: int = 0) -> Query:
+                  strategy: str = "info_gain", seed: int = 0, plan: "PlanSettings | None" = None, *,
+                  max_candidates: int = MAX_CANDIDATES) -> Query:
     """Propose a ``num_options``-path query on ``query_mdp`` from posterior ``samples``.
+
+    Candidates: with ``plan`` (Rob's plan settings), the rich candidates of
+    :func:`ird_core.designer.candidates.query_candidates`; without it, ``info_gain`` and
+    ``random`` use the samples' own optimal paths (module docstring) and ``evoi`` and
+    ``max_regret`` the rich candidates with ``PlanSettings()`` (no baseline).
 
     Args:
         query_mdp: the MDP the options are paths of (default use: the test map), ``(H, W, d)``.
         samples: ``(K, d)`` posterior samples.
-        beta: the answer rationality assumed by the information gain, finite ``>= 0``.
+        beta: the answer rationality assumed by the criteria, finite ``>= 0``.
         num_options: ``q >= 2``.
-        strategy: one of ``STRATEGIES`` (module docstring).
-        seed: ``>= 0``, seeds ``random``.
+        strategy: one of ``STRATEGIES``: ``evoi`` and ``max_regret``
+            (:mod:`ird_core.designer.decision`), ``info_gain`` (module docstring), ``random``.
+        seed: ``>= 0``, seeds ``random`` and the candidates' clustering.
+        plan: Rob's plan settings on ``query_mdp`` (baseline), or ``None``.
+        max_candidates: the rich candidates' bound.
     Returns:
-        The ``Query``; its ``information_gain`` is the set's, for either strategy.
+        The ``Query``; its ``information_gain`` is the set's, for every strategy.
     Raises:
-        NotEnoughCandidates: fewer than ``num_options`` distinct candidates.
+        NotEnoughCandidates: fewer than ``num_options`` distinct candidates (for ``max_regret``:
+            candidates that are some sample's own optimum).
         ValueError: naming the field of any other bad argument.
     """
-    if not isinstance(query_mdp, GridMDP):
-        raise ValueError(f"query_mdp: expected a GridMDP, got {type(query_mdp).__name__}")
-    w = check_array("samples", samples, (None, query_mdp.num_features))
-    beta = check_real("beta", beta, positive=False)
-    num_options = check_int("num_options", num_options, 2)
+    w, beta, num_options, seed = _check_query_arguments(query_mdp, samples, beta, num_options, seed)
     parse(QueryStrategy, strategy, "strategy")
-    seed = check_int("seed", seed, 0)
-    states, features, _ = candidate_paths(query_mdp, w)
-    n = len(states)
-    if n < num_options:
-        raise NotEnoughCandidates(f"num_options: {num_options} options requested but the {len(w)} samples plan "
-                                  f"only {n} distinct path(s) on the query map")
+    cells, features, choice = _candidates(query_mdp, w, strategy, plan, num_options, max_candidates, seed)
+    n = len(features)
     scores = beta * (features @ w.T)  # (n, K)
+    value = float("nan")
     if strategy == QueryStrategy.RANDOM:
         chosen = [int(i) for i in np.random.default_rng(seed).choice(n, num_options, replace=False)]
-    else:
+    elif strategy == QueryStrategy.INFO_GAIN:
         i, j, _ = _best_pair(scores)
         chosen = _greedy_extend(scores, [i, j], num_options)
-    gain = float(_information_gain_from_scores(scores[chosen].T))
-    cells = []
-    for index in chosen:
-        path = np.stack(np.divmod(states[index], query_mdp.width), axis=1)
-        path.setflags(write=False)
-        cells.append(path)
-    option_features = features[chosen]
-    option_features.setflags(write=False)
-    return Query(tuple(cells), option_features, gain, strategy, n)
+    elif strategy == QueryStrategy.EVOI:
+        screen = decision.Screen(query_mdp, w, (plan or PlanSettings()).cell_rewards(query_mdp, w), cells[0])
+        chosen, value = decision.best_query(lambda sets: decision.evoi_values(screen, features[sets], beta),
+                                            n, num_options)
+    else:
+        regret = decision.mutual_regret(features, w, choice)
+        owned = np.flatnonzero(np.isfinite(regret).any(axis=1))
+        if len(owned) < num_options:
+            raise NotEnoughCandidates(f"num_options: {num_options} options requested but the samples' own optimal "
+                                      f"paths give only {len(owned)} distinct candidate(s)")
+        sub = regret[np.ix_(owned, owned)]
+        picked, value = decision.best_query(
+            lambda sets: sub[sets[:, :, None], sets[:, None, :]].sum(axis=(1, 2)) / 2, len(owned), num_options)
+        chosen = [int(owned[i]) for i in picked]
+    return _query(query_mdp, cells, features, chosen, scores, strategy, value)
+
+
+def propose_oracle_query(query_mdp: GridMDP, samples: np.ndarray, beta: float, true_cells: np.ndarray,
+                         designer_beta: float, num_options: int = 2, plan: "PlanSettings | None" = None, *,
+                         max_candidates: int = MAX_CANDIDATES, seed: int = 0) -> Query:
+    """The query, among the rich candidates, whose answer by the simulated designer leads to the
+    re-plan of highest expected TRUE return (:func:`ird_core.designer.decision.oracle_values`):
+    the headroom of one question, for experiments (it needs the true reward).
+
+    Args:
+        true_cells: ``(H, W)`` the TRUE per-cell reward of ``query_mdp``.
+        designer_beta: the simulated designer's rationality, finite ``>= 0``.
+        Others as :func:`propose_query`.
+    """
+    w, beta, num_options, seed = _check_query_arguments(query_mdp, samples, beta, num_options, seed)
+    truth = check_array("true_cells", true_cells, (query_mdp.height, query_mdp.width))
+    designer_beta = check_real("designer_beta", designer_beta, positive=False, ranged=False)
+    cells, features, _ = _candidates(query_mdp, w, "oracle", plan or PlanSettings(), num_options, max_candidates,
+                                     seed)
+    returns = truth[cells[:, :, 0], cells[:, :, 1]].sum(axis=1)  # (n,)
+    screen = decision.Screen(query_mdp, w, (plan or PlanSettings()).cell_rewards(query_mdp, w), cells[0])
+    chosen, value = decision.best_query(
+        lambda sets: decision.oracle_values(screen, features[sets], returns[sets], beta, truth, designer_beta),
+        len(features), num_options)
+    return _query(query_mdp, cells, features, chosen, beta * (features @ w.T), "oracle", value)
 
 
 # --------------------------------------------------------------------------------------------

@@ -48,6 +48,7 @@ import numpy as np
 
 from ird_core import mdp, planning, posterior
 from ird_core.designer import queries
+from ird_core.designer.candidates import PlanSettings
 from ird_core.experiments import statistics
 from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
 from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod
@@ -55,6 +56,8 @@ from ird_core.worlds import evaluation, lavaland
 
 __all__ = [
     "STRATEGIES",
+    "ORACLE_QUERY",
+    "EXPERIMENT_STRATEGIES",
     "QUERY_COUNTS",
     "DEFAULT_DESIGNER_BETA",
     "ActiveSpec",
@@ -71,22 +74,27 @@ __all__ = [
 
 QUERY_COUNTS: tuple[int, ...] = (0, 1, 2, 3, 5)
 DEFAULT_DESIGNER_BETA: float = 1.0
+#: The query chosen with the true reward (``queries.propose_oracle_query``): the headroom.
+ORACLE_QUERY: str = "oracle_query"
+#: The experiment's strategies: the library's, then the oracle query.
+EXPERIMENT_STRATEGIES: tuple[str, ...] = STRATEGIES + (ORACLE_QUERY,)
 
 
-# The Lavaland experiments' small settings, shared so that both experiments stay comparable.
+# The Lavaland experiments' small sampler settings, shared so that both experiments stay comparable.
 _SMALL = TrialSpec("side_effects", 0, **QUICK)
 
 
 @dataclass(frozen=True)
 class ActiveSpec:
-    """Everything one trial depends on. Sizes and sampler settings default to the experiments'
-    small settings (:data:`ird_core.experiments.QUICK`: 8x8, T = 12, ``obs_dim`` 10,
-    64 samples, beta 50, 4 chains), with MaxEnt-Z (its gradient is cheap)."""
+    """Everything one trial depends on. The map is the paper's (15x15, T = 30: large enough for
+    queries to differ); ``obs_dim`` and the sampler settings are the experiments' small settings
+    (:data:`ird_core.experiments.QUICK`: ``obs_dim`` 10, 64 samples, beta 50, 4 chains), with
+    MaxEnt-Z (its gradient is cheap)."""
 
     condition: str
     seed: int
-    size: int = _SMALL.size
-    horizon: int = _SMALL.horizon
+    size: int = 15
+    horizon: int = 30
     obs_dim: int = _SMALL.obs_dim
     num_samples: int = _SMALL.num_samples
     beta: float = _SMALL.beta
@@ -100,7 +108,7 @@ class ActiveSpec:
     # for MaxEnt-Z; shorter warm-ups leave more re-samples unconverged, docs/benchmarks.md).
     warm_warmup: "int | None" = None
     query_counts: tuple[int, ...] = QUERY_COUNTS
-    strategies: tuple[str, ...] = STRATEGIES
+    strategies: tuple[str, ...] = EXPERIMENT_STRATEGIES
     num_options: int = 2
     designer_beta: float = DEFAULT_DESIGNER_BETA
     choice_beta: "float | None" = None  # None: designer_beta
@@ -118,8 +126,8 @@ class ActiveSpec:
                 or list(counts) != sorted(set(counts)):
             raise ValueError(f"query_counts: expected increasing non-negative integers, got {counts!r}")
         for s in self.strategies:
-            if s not in STRATEGIES:
-                raise ValueError(f"strategies: expected a subset of {STRATEGIES}, got {s!r}")
+            if s not in EXPERIMENT_STRATEGIES:
+                raise ValueError(f"strategies: expected a subset of {EXPERIMENT_STRATEGIES}, got {s!r}")
         if self.num_options < 2:
             raise ValueError(f"num_options: expected >= 2, got {self.num_options}")
         for name in ("designer_beta", "choice_beta"):
@@ -152,6 +160,7 @@ class ActiveResult:
     answers_correct: int
     r_hat_max: float
     cells: tuple[tuple[int, int], ...]
+    changed: bool = False
 
 
 def make_specs(conditions: Iterable[str], trials: int, seed: int = 0, **settings) -> list[ActiveSpec]:
@@ -165,13 +174,14 @@ def _seed(seed: int, *keys: int) -> int:
 
 def _result(inst: lavaland.LavalandInstance, strategy: str, num_queries: int, cells: Sequence[tuple[int, int]], *,
             asked: int = 0,
-            gains: "list[float] | None" = None, correct: int = 0, r_hat: float = math.nan) -> ActiveResult:
+            gains: "list[float] | None" = None, correct: int = 0, r_hat: float = math.nan,
+            changed: bool = False) -> ActiveResult:
     labels = inst.test_labels
     return ActiveResult(inst.condition, inst.seed, strategy, num_queries, asked,
                         evaluation.touches_lava(labels, cells), evaluation.reaches_target(labels, cells),
                         evaluation.reaches_gold(labels, cells), evaluation.true_return(labels, cells),
                         float(np.mean(gains)) if gains else math.nan, correct, r_hat,
-                        tuple((int(r), int(c)) for r, c in cells))
+                        tuple((int(r), int(c)) for r, c in cells), bool(changed))
 
 
 def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
@@ -191,31 +201,46 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     reference = proxy.proxy_features / (inst.train_horizon + 1)
     options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
 
+    resampled: dict[tuple, posterior.Posterior] = {}
+
     def sample(evidence: list, round_index: int, initial: "posterior.Posterior | None") -> posterior.Posterior:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per result instead
-            return posterior.sample_joint_posterior(
-                evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
-                spec.prior_sigma, warmup=spec.warmup if initial is None else spec.warm_warmup, initial=initial,
-                **options)
+        # Strategies that asked the same questions and got the same answers share the re-sample
+        # (its seeds depend on the round only, so it would be the same draw).
+        key = (round_index, id(initial)) + tuple((o.option_features.tobytes(), o.chosen) for o in evidence[1:])
+        if key not in resampled:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per result instead
+                resampled[key] = posterior.sample_joint_posterior(
+                    evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
+                    spec.prior_sigma, warmup=spec.warmup if initial is None else spec.warm_warmup,
+                    initial=initial, **options)
+        return resampled[key]
+
+    rob = PlanSettings(MAIN_BASELINE, reference)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
         return planning.plan_path(test, post.samples, PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
 
+    def propose(strategy: str, samples: np.ndarray, j: int) -> "queries.Query | None":
+        try:
+            if strategy == ORACLE_QUERY:
+                return queries.propose_oracle_query(test, samples, spec.answer_beta, true_cells, spec.designer_beta,
+                                                    spec.num_options, rob, seed=_seed(inst.seed, 2, j))
+            return queries.propose_query(test, samples, spec.answer_beta, spec.num_options, strategy,
+                                         seed=_seed(inst.seed, 2, j), plan=rob)
+        except queries.NotEnoughCandidates:
+            return None  # nothing to ask
+
     first = sample([proxy], 0, None)
     first_cells = plan(first)
     last = max(spec.query_counts)
-    for strategy_index, strategy in enumerate(spec.strategies):
+    for strategy in spec.strategies:
         post, cells, evidence = first, first_cells, [proxy]
         gains: list[float] = []
         correct = 0
         for j in range(last + 1):
             if j > 0:
-                try:
-                    query = queries.propose_query(test, post.samples, spec.answer_beta, spec.num_options,
-                                                  strategy, seed=_seed(inst.seed, 2, j))
-                except queries.NotEnoughCandidates:
-                    query = None  # the samples agree on the plan: nothing to ask
+                query = propose(strategy, post.samples, j)
                 if query is not None:
                     returns = np.array([evaluation.true_return(inst.test_labels, c) for c in query.option_cells])
                     designer = np.random.default_rng(_seed(inst.seed, 3, j))
@@ -228,7 +253,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                     cells = plan(post)
             if j in spec.query_counts:
                 out.append(_result(inst, strategy, j, cells, asked=len(gains), gains=gains, correct=correct,
-                                   r_hat=post.r_hat_max))
+                                   r_hat=post.r_hat_max, changed=cells != first_cells))
     return out
 
 
@@ -238,11 +263,11 @@ SUMMARY_COLUMNS: tuple[str, ...] = (
     "condition", "strategy", "num_queries", "trials", "lava_fraction", "lava_ci_low", "lava_ci_high",
     "target_fraction", "target_ci_low", "target_ci_high", "gold_fraction", "gold_ci_low", "gold_ci_high",
     "mean_return", "return_ci_low", "return_ci_high", "mean_asked", "mean_information_gain",
-    "answers_correct_fraction", "max_r_hat", "nonconverged")
+    "answers_correct_fraction", "max_r_hat", "nonconverged", "changed_fraction")
 
 RESULT_COLUMNS: tuple[str, ...] = (
     "condition", "seed", "strategy", "num_queries", "asked", "touched_lava", "reached_target",
-    "reached_gold", "true_return", "information_gain", "answers_correct", "r_hat_max", "cells")
+    "reached_gold", "true_return", "information_gain", "answers_correct", "r_hat_max", "cells", "changed")
 
 
 @dataclass(frozen=True)
@@ -271,6 +296,7 @@ class ActiveSummary:
     answers_correct_fraction: float
     max_r_hat: float
     nonconverged: int
+    changed_fraction: float = math.nan
 
 
 def aggregate(results: Iterable[ActiveResult]) -> list[ActiveSummary]:
@@ -289,7 +315,7 @@ def _summary(key: tuple[str, str, int], rs: list[ActiveResult]) -> ActiveSummary
         *statistics.t_interval([r.true_return for r in rs]),
         asked / len(rs), float(np.mean(gains)) if gains else math.nan,
         sum(r.answers_correct for r in rs) / asked if asked else math.nan,
-        *statistics.convergence(r.r_hat_max for r in rs))
+        *statistics.convergence(r.r_hat_max for r in rs), sum(r.changed for r in rs) / len(rs))
 
 
 def _returns_by_seed(results: Iterable[ActiveResult], condition: str, strategy: str, count: int) -> dict[int, float]:

@@ -60,6 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
     parallel.add_trial_arguments(p, d)
     p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
+    p.add_argument("--report-only", action="store_true",
+                   help="run nothing: rewrite the report in --out from its active_trials.csv and run.json")
+    p.add_argument("--merge", nargs="+", type=Path, default=None, metavar="DIR",
+                   help="with --report-only: the report of the chunks in DIR... (runs of disjoint seeds with the "
+                        "same settings, e.g. --seed 0 / 100 / 200 --trials 100) written into --out")
     return p
 
 
@@ -91,9 +96,53 @@ def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], setting
     return 0
 
 
+#: Settings that may differ between the chunks of one report.
+CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
+
+
+def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
+    """Rewrite every report file in ``out`` from ``active_trials.csv`` and ``run.json`` of ``out``
+    or of each chunk directory (their seeds must be disjoint and their other settings equal);
+    exit status 0, 2 when a file cannot be read or the chunks do not fit together."""
+    import json
+
+    runs, results = [], []
+    for source in chunks or [out]:
+        try:
+            runs.append(json.loads((source / "run.json").read_text()))
+            results += active_report.read_results_csv(source / "active_trials.csv")
+        except (OSError, ValueError, KeyError) as exc:
+            print(f"--report-only: cannot read {source}: {exc}", file=sys.stderr)
+            return 2
+    fixed = [{k: v for k, v in run["settings"].items() if k not in CHUNK_KEYS} for run in runs]
+    if any(f != fixed[0] for f in fixed):
+        print("--merge: the chunks' settings differ", file=sys.stderr)
+        return 2
+    keys = [(r.condition, r.seed, r.strategy, r.num_queries) for r in results]
+    if len(keys) != len(set(keys)):
+        print("--merge: the chunks share seeds", file=sys.stderr)
+        return 2
+    conditions = list(dict.fromkeys(r.condition for r in results))
+    settings = dict(runs[0]["settings"])
+    for key in ("query_counts", "strategies"):
+        settings[key] = tuple(settings[key])
+    command = runs[0]["command"]
+    if chunks:
+        seeds = sorted({r.seed for r in results})
+        settings.update(trials=len(seeds), seed=f"{seeds[0]}..{seeds[-1]} in {len(runs)} chunks")
+        command = " && ".join(run["command"] for run in runs)
+    out.mkdir(parents=True, exist_ok=True)
+    active_report.write_report(out, results, active.aggregate(results), conditions,
+                               RunRecord(command, sum(float(run["wall_seconds"]) for run in runs), settings))
+    print(f"report rewritten in {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """The designer-in-the-loop experiment from the command line; exit status 0, 2 on a bad argument."""
     args = build_parser().parse_args(argv)
+    if args.report_only:
+        return rewrite_report(args.out, args.merge)
     if args.trials < 1:
         print("--trials must be >= 1", file=sys.stderr)
         return 2

@@ -17,19 +17,19 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from ird_core import style
-from ird_core.experiments import active
+from ird_core.experiments import active, active_endpoints
 from ird_core.experiments.parallel import describe
 from ird_core.experiments.report import RunRecord
 from ird_core.experiments.tables import cells_text, number, percent, write_csv, write_run_json
 from ird_core.vocabulary import QueryStrategy
 
-__all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "read_summaries_csv", "condition_figure",
-           "plot_condition", "replot", "write_report"]
+__all__ = ["LABEL", "COLOUR", "markdown_table", "headline", "write_markdown", "read_summaries_csv",
+           "read_results_csv", "condition_figure", "plot_condition", "replot", "write_report"]
 
-LABEL: dict[str, str] = {QueryStrategy.INFO_GAIN: "info-gain queries", QueryStrategy.RANDOM: "random queries",
-                         "literal": "literal", "oracle": "oracle"}
-COLOUR: dict[str, str] = {k: style.planner_color(k) for k in (QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM, "literal",
-                                                                 "oracle")}
+LABEL: dict[str, str] = {QueryStrategy.EVOI: "EVOI queries", QueryStrategy.MAX_REGRET: "max-regret queries",
+                         QueryStrategy.INFO_GAIN: "info-gain queries", QueryStrategy.RANDOM: "random queries",
+                         active.ORACLE_QUERY: "oracle queries", "literal": "literal", "oracle": "oracle"}
+COLOUR: dict[str, str] = {k: style.planner_color(k) for k in LABEL}
 #: The outcome flags drawn per strategy: (name, summary field).
 OUTCOMES: tuple[tuple[str, str], ...] = (("lava", "lava_fraction"), ("target", "target_fraction"),
                                          ("gold", "gold_fraction"))
@@ -63,11 +63,14 @@ def _condition_headline(results: Sequence[active.ActiveResult], summaries: Seque
     lines = []
     one = _first_query_count(counts)
     three = 3 if 3 in counts else max(counts)
-    if one is not None and set(strategies) >= {QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM}:
-        mean, lo, hi, n = active.paired_difference(list(results), c, (QueryStrategy.INFO_GAIN, one), (QueryStrategy.RANDOM, one))
-        verdict = "beats" if lo > 0 else ("is beaten by" if hi < 0 else "does not separate from")
-        lines.append(f"- {c}: after {one} quer{'y' if one == 1 else 'ies'}, info-gain {verdict} random: paired "
-                     f"return difference {number(mean)} [{number(lo)}, {number(hi)}] (n = {n})")
+    if one is not None and QueryStrategy.RANDOM in strategies:
+        for s in strategies:
+            if s == QueryStrategy.RANDOM:
+                continue
+            mean, lo, hi, n = active_endpoints.versus(list(results), c, s, QueryStrategy.RANDOM, one)
+            verdict = "beats" if lo > 0 else ("is beaten by" if hi < 0 else "does not separate from")
+            lines.append(f"- {c}: after {one} quer{'y' if one == 1 else 'ies'}, {s} {verdict} random: paired "
+                         f"return difference {number(mean)} [{number(lo)}, {number(hi)}] (n = {n})")
     closed = ", ".join(f"{s} {number(100 * active.gap_closed(list(summaries), c, s, three), 0)}%" for s in strategies)
     before = number(100 * active.gap_closed(list(summaries), c, strategies[0], 0), 0) if 0 in counts else "nan"
     lines.append(f"- {c}: share of the literal-to-oracle return gap closed after {three} queries: {closed} "
@@ -99,14 +102,19 @@ def write_markdown(path: Path, results: Sequence[active.ActiveResult], summaries
             "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items() if k not in ("workers", "scheduler")),
             "", "IRD plan: per_step x training_features (exact DP on all posterior samples), re-planned after every "
             "answer on the posterior re-sampled (warm start) with all evidence so far. Queries: 2 paths on the test "
-            "map, chosen by expected information gain or uniformly among the samples' distinct optimal paths; "
-            "answered by the simulated designer (Boltzmann on true return). literal = the proxy's plan, oracle = the "
-            "true-reward optimum (exact DP). Intervals: 95% Wilson for fractions, 95% Student-t for mean returns "
-            "and for paired differences. `asked` = questions really asked (a round is skipped when all samples "
-            "plan the same path).", "",
+            "map among the rich candidates (Rob's plan, other risk levels, sample clusters, the samples' own "
+            "optima, detours and deviations; ird_core.designer.candidates), chosen by the expected value of the "
+            "answer for Rob's plan (evoi), maximum mutual regret (max_regret), expected information gain "
+            "(info_gain), uniformly (random), or with the true reward (oracle_query, the headroom); answered by the "
+            "simulated designer (Boltzmann on true return). literal = the proxy's plan, oracle = the true-reward "
+            "optimum (exact DP). Regret = the oracle plan's true return minus the strategy's, per seed. Intervals: "
+            "95% Wilson for fractions, 95% Student-t for mean returns and for paired differences. `asked` = "
+            "questions really asked (a round is skipped when fewer than 2 candidates exist).", "",
+            "## Goal check", "", *active_endpoints.goal_check(results, summaries, conditions), "",
             "## Headline", "", *headline(results, summaries, conditions, counts, strategies), ""]
     for c in conditions:
-        text += [f"## {c}", "", markdown_table(summaries, c), ""]
+        text += [f"## {c}", "", active_endpoints.endpoint_table(results, summaries, c, strategies, counts), "",
+                 markdown_table(summaries, c), ""]
     path.write_text("\n".join(text))
 
 
@@ -129,7 +137,7 @@ def _plot_outcomes(ax: Any, rows: list[active.ActiveSummary], strategy: str, con
         if name == "gold" and condition != "pot_of_gold":
             continue
         ax.plot(x, [getattr(s, key) for s in ss], color=style.terrain_color(name),
-                marker="o" if strategy == QueryStrategy.INFO_GAIN else "s", ls="-" if strategy == QueryStrategy.INFO_GAIN else ":",
+                marker="o" if strategy == QueryStrategy.EVOI else "s", ls="-" if strategy == QueryStrategy.EVOI else ":",
                 label=f"{name}, {LABEL[strategy]}")
 
 
@@ -153,6 +161,24 @@ def read_summaries_csv(path: Path) -> list[active.ActiveSummary]:
                                         for k, v in row.items()}) for row in csv.DictReader(handle)]
 
 
+def read_results_csv(path: Path) -> list[active.ActiveResult]:
+    """The per-trial results of an ``active_trials.csv`` (:func:`write_report`'s)."""
+    import csv
+
+    def cells(text: str) -> tuple[tuple[int, int], ...]:
+        numbers = [int(v) for v in text.replace("(", " ").replace(")", " ").replace(",", " ").replace(";", " ").split()]
+        return tuple(zip(numbers[0::2], numbers[1::2]))
+
+    flag = {"True": True, "False": False, "true": True, "false": False, "1": True, "0": False}
+    with open(path, newline="") as handle:
+        return [active.ActiveResult(
+            row["condition"], int(row["seed"]), row["strategy"], int(row["num_queries"]), int(row["asked"]),
+            flag[row["touched_lava"]], flag[row["reached_target"]], flag[row["reached_gold"]],
+            float(row["true_return"]), float(row["information_gain"]), int(row["answers_correct"]),
+            float(row["r_hat_max"]), cells(row["cells"]), flag[row.get("changed", "False")])
+            for row in csv.DictReader(handle)]
+
+
 def condition_figure(summaries: Sequence[active.ActiveSummary], condition: str) -> Any:
     """The figure of :func:`plot_condition` (not written)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -163,11 +189,12 @@ def condition_figure(summaries: Sequence[active.ActiveSummary], condition: str) 
     FigureCanvasAgg(fig)
     ax, ax2 = fig.subplots(1, 2)
     _bounds(ax, rows)
-    for strategy in QueryStrategy:
+    for strategy in active.EXPERIMENT_STRATEGIES:
         x = _plot_returns(ax, rows, strategy)
         if not x:
             continue
-        _plot_outcomes(ax2, rows, strategy, condition)
+        if strategy in (QueryStrategy.EVOI, QueryStrategy.RANDOM):
+            _plot_outcomes(ax2, rows, strategy, condition)
         ax.set_xticks(x)
         ax2.set_xticks(x)
     n = rows[0].trials if rows else 0
@@ -178,7 +205,7 @@ def condition_figure(summaries: Sequence[active.ActiveSummary], condition: str) 
     ax2.set_xlabel("answered queries")
     ax2.set_ylabel("fraction of trials")
     ax2.set_ylim(-0.02, 1.02)
-    ax2.set_title("IRD path: touches lava / reaches target / reaches gold\n(solid: info-gain, dotted: random)",
+    ax2.set_title("IRD path: touches lava / reaches target / reaches gold\n(solid: EVOI, dotted: random)",
                   fontsize=8)
     ax2.legend(frameon=False, fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.18))
     for a in (ax, ax2):
@@ -188,7 +215,7 @@ def condition_figure(summaries: Sequence[active.ActiveSummary], condition: str) 
 
 
 def plot_condition(out: Path, summaries: Sequence[active.ActiveSummary], condition: str) -> Path:
-    """``active_<condition>.png``: mean true return vs number of queries (both strategies, literal
+    """``active_<condition>.png``: mean true return vs number of queries (every strategy, literal
     and oracle as lines) and the IRD path's outcome fractions."""
     path = out / f"active_{condition}.png"
     condition_figure(summaries, condition).savefig(path)

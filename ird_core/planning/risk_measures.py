@@ -25,7 +25,7 @@ import numpy as np
 
 from ird_core.vocabulary import RiskMeasure, parse
 
-__all__ = ["Risk", "MIN_RISK", "check_risk", "check_sample_weights", "risk_statistic"]
+__all__ = ["Risk", "MIN_RISK", "check_risk", "check_sample_weights", "risk_statistic", "weighted_cvar_batch"]
 
 #: Largest ``lambda`` of ``mean_sd`` (beyond it the plan is the min's in practice).
 MAX_LAMBDA: float = 100.0
@@ -119,3 +119,27 @@ def risk_statistic(values: np.ndarray, risk: Risk, sample_weights: "np.ndarray |
     cvar = (share * ordered).sum(axis=0) / risk.level
     # The worst value alone carries the level: its exact value, not ``share * v / alpha``.
     return np.where(risk.level <= mass[0], ordered[0], cvar)
+
+
+def weighted_cvar_batch(values: np.ndarray, sample_weights: np.ndarray, alpha: float) -> np.ndarray:
+    """``risk_statistic(values, Risk("cvar", alpha), p_m)`` for every row ``p_m`` of a batch.
+
+    The order of the samples per column does not depend on the weights, so ``values`` is sorted
+    once and each weight vector only accumulates its mass in that order.
+
+    Args:
+        values: ``(K, S)`` per-cell rewards (or returns) of ``K`` samples.
+        sample_weights: ``(M, K)`` rows of checked probabilities.
+        alpha: the level, in ``(0, 1]``.
+    Returns:
+        ``(M, S)``.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    p = np.asarray(sample_weights, dtype=np.float64)
+    order = np.argsort(v, axis=0, kind="stable")
+    ordered = np.take_along_axis(v, order, axis=0)  # (K, S)
+    mass = p[:, order]  # (M, K, S)
+    before = np.cumsum(mass, axis=1) - mass
+    share = np.minimum(mass, np.maximum(0.0, alpha - before))
+    cvar = np.einsum("mks,ks->ms", share, ordered) / alpha
+    return np.where(alpha <= mass[:, 0], ordered[0], cvar)

@@ -185,7 +185,8 @@ def test_info_gain_picks_the_brute_force_best_pair(seed: int, model: Observation
         for c in brute_counts(train, None, np.concatenate([proxy[None], samples]), model):
             candidates.setdefault(tuple(c.round(9)), c)
         assert query.num_candidates == len(candidates)
-        best = max(direct_gain(np.stack(pair), samples, beta) for pair in itertools.combinations(candidates.values(), 2))
+        best = max(direct_gain(np.stack(pair), samples, beta)
+                   for pair in itertools.combinations(candidates.values(), 2))
         assert query.information_gain == pytest.approx(best, abs=1e-10)
         assert query.information_gain == pytest.approx(direct_gain(query.option_features, samples, beta), abs=1e-10)
         triple = PQ.propose_proxy_query(train, None, proxy, samples, beta, 3, observation_model=model)
@@ -228,7 +229,8 @@ def test_not_enough_candidates() -> None:
     (dict(beta=-1.0), "beta"),
     (dict(num_options=1), "num_options"),
     (dict(strategy="best"), "strategy"),
-    (dict(strategy="evoi"), "strategy"),
+    (dict(strategy="evoi"), "test_mdp"),
+    (dict(strategy="max_regret"), "strategy"),
     (dict(seed=-1), "seed"),
     (dict(train_mdp="map"), "train_mdp"),
     (dict(proxy_mdp=GridMDP(np.zeros((3, 3, 3)), (0, 0), 2)), "proxy_mdp"),

@@ -207,7 +207,7 @@ def test_bad_query_arguments_name_the_field(kwargs: dict, field: str) -> None:
 
 
 def test_strategies_are_listed_once() -> None:
-    assert Q.STRATEGIES == ("info_gain", "random")
+    assert Q.STRATEGIES == ("evoi", "max_regret", "info_gain", "random")
 
 
 # ------------------------------------------------------------------------------ simulated designer
