@@ -27,9 +27,9 @@ Query proposal (``propose_query``):
 - ``info_gain`` with 2 options: the exact best pair over all ``n (n - 1) / 2`` candidate pairs,
   evaluated in memory-bounded blocks from one ``(n, K)`` score matrix. With ``q > 2``: the best
   pair, then greedily the candidate that raises the set's information gain most, until ``q``.
-  Greedy has no optimality guarantee (the exact search costs ``C(n, q)`` evaluations); adding an
-  option never lowers the information gain, so the greedy set is at least as informative as the
-  best pair.
+  Greedy has no optimality guarantee (the exact search costs ``C(n, q)`` evaluations), and an
+  added option can lower the information gain (a third option splits the answer's probability),
+  so the greedy set contains the best pair but may be less informative than it.
 - ``random``: ``q`` distinct candidates uniformly at random (seeded); the baseline.
 - ``propose_oracle_query`` (experiments): the query whose simulated answer leads to the re-plan of
   highest expected TRUE return; the headroom of one question.

@@ -103,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--designer", default="simulated", choices=("simulated", "web"),
                    help="who answers: the simulated designer node, or a person on the web page")
     q.add_argument("--num-options", type=int, default=DEFAULT_NUM_OPTIONS, help="paths per question")
-    q.add_argument("--strategy", default="info_gain", choices=STRATEGIES, help="how the options are chosen")
+    q.add_argument("--strategy", default="evoi", choices=STRATEGIES, help="how the options are chosen")
     q.add_argument("--designer-beta", type=float, default=DEFAULT_DESIGNER_BETA,
                    help="simulated designer's rationality on the options' true returns")
     q.add_argument("--port", type=int, default=8765, help="web designer's port on 127.0.0.1")

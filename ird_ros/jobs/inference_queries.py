@@ -41,17 +41,22 @@ from ird_core import posterior as core_inference
 from ird_core.checks import check_real
 from ird_core.designer import proxy_queries as core_proxy_queries
 from ird_core.designer import queries as core_queries
+from ird_core.designer.candidates import PlanSettings
 from ird_core.mdp import GridMDP
 from ird_core.posterior import ObservationModel
 from ird_core.vocabulary import QueryKind, QueryStrategy, parse
 from ird_ros.jobs.inference import InferenceJob
+from ird_ros.jobs.planning import ReferenceJob, reference_features
 from ird_ros.jobs.work import check_query_work
 
 if TYPE_CHECKING:  # the options are nav_msgs/Path messages, built by the node; no ROS import here
+    from ird_msgs.msg import ProxyReward
     from nav_msgs.msg import Path
 
+    from ird_ros.conversions import FeatureGridData
+
 __all__ = ["QueryJob", "ProxyQueryJob", "ProposalRecord", "OpenQuery", "WorldEvidence", "run_query",
-           "proxy_query_job", "resample_seed"]
+           "proxy_query_job", "proxy_test_mdp", "query_reference", "plan_settings", "resample_seed"]
 
 
 @dataclass(frozen=True)
@@ -64,6 +69,16 @@ class QueryJob:
     num_options: int
     strategy: QueryStrategy
     seed: int
+    # Rob's plan on the query map is the planner's default (per step, the min, baseline
+    # training_features); its reference counts come from this job (None: no baseline).
+    reference: ReferenceJob | None = None
+
+
+def plan_settings(reference: ReferenceJob | None) -> PlanSettings:
+    """Rob's plan settings: the ``training_features`` baseline when a reference is given."""
+    if reference is None:
+        return PlanSettings()
+    return PlanSettings("training_features", reference_features(reference))
 
 
 @dataclass(frozen=True)
@@ -79,6 +94,8 @@ class ProxyQueryJob:
     strategy: QueryStrategy
     seed: int
     observation_model: ObservationModel
+    test_mdp: GridMDP | None = None  # the map Rob will drive, for evoi
+    reference: ReferenceJob | None = None  # Rob's baseline there (``plan_settings``)
 
 
 def run_query(job: "QueryJob | ProxyQueryJob") -> "core_queries.Query | core_proxy_queries.ProxyQuery":
@@ -88,18 +105,20 @@ def run_query(job: "QueryJob | ProxyQueryJob") -> "core_queries.Query | core_pro
         return core_proxy_queries.propose_proxy_query(
             job.train_mdp, job.proxy_mdp, job.proxy_weights, job.samples, job.beta, job.num_options, job.strategy,
             job.seed, job.observation_model, max_candidates=max(core_proxy_queries.DEFAULT_MAX_CANDIDATES,
-                                                                len(job.samples) + 1))
-    return core_queries.propose_query(job.query_mdp, job.samples, job.beta, job.num_options, job.strategy, job.seed)
+                                                                len(job.samples) + 1),
+            test_mdp=job.test_mdp, plan=plan_settings(job.reference))
+    return core_queries.propose_query(job.query_mdp, job.samples, job.beta, job.num_options, job.strategy, job.seed,
+                                      plan_settings(job.reference))
 
 
 def proxy_query_job(evidence: "WorldEvidence", *, map_empty: bool, start: tuple[int, int], horizon: int,
                     num_options: int, strategy: str, seed: int, beta: float, max_options: int,
-                    max_query_work: float) -> ProxyQueryJob:
+                    max_query_work: float, test: GridMDP | None = None) -> ProxyQueryJob:
     """The job of a "proxies" request on ``evidence`` (the node has checked that a posterior exists).
 
     The options are planned on the evidence's training map, so ``map`` must be empty and
     ``start_row``, ``start_col``, ``horizon`` 0; ``num_options`` 0 = 2 (at most ``max_options``);
-    ``strategy`` "" = ``info_gain``. The work is ``ird_ros.jobs.work.check_query_work`` on the
+    ``strategy`` "" = ``evoi``, which needs ``test`` (the map Rob will drive, :func:`proxy_test_mdp`). The work is ``ird_ros.jobs.work.check_query_work`` on the
     training map (one candidate per sample, each one MDP pass).
 
     Raises:
@@ -117,15 +136,39 @@ def proxy_query_job(evidence: "WorldEvidence", *, map_empty: bool, start: tuple[
     num_options = num_options or 2
     if not 2 <= num_options <= max_options:
         raise ValueError(f"num_options: must be in [2, max_options={max_options}], got {num_options}")
-    chosen = parse(QueryStrategy, strategy or QueryStrategy.INFO_GAIN, "strategy")
-    if chosen not in (QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM):
-        raise ValueError(f"strategy: kind 'proxies' is chosen by 'info_gain' or 'random', got {strategy!r}")
+    chosen = parse(QueryStrategy, strategy or QueryStrategy.EVOI, "strategy")
+    if chosen not in (QueryStrategy.EVOI, QueryStrategy.INFO_GAIN, QueryStrategy.RANDOM):
+        raise ValueError(f"strategy: kind 'proxies' is chosen by 'evoi', 'info_gain' or 'random', got {strategy!r}")
+    if chosen is QueryStrategy.EVOI and test is None:
+        raise ValueError("strategy: 'evoi' needs the test map Rob will drive, and none was received")
     train = job.train_mdp
     samples = posterior.samples
     check_query_work(len(samples), train.height, train.width, train.horizon, train.num_features, num_options,
                      max_query_work)
+    if test is not None:
+        check_query_work(len(samples), test.height, test.width, test.horizon, test.num_features, num_options,
+                         max_query_work)
     return ProxyQueryJob(train, job.proxy_mdp, job.proxy_weights, samples, beta, num_options, chosen, seed,
-                         job.observation_model)
+                         job.observation_model, test, query_reference(evidence))
+
+
+def proxy_test_mdp(grid: "FeatureGridData", proxy: "ProxyReward | None") -> GridMDP:
+    """The map Rob will drive for a proxies query's EVOI: the test map from the proxy's test start
+    over its test horizon (``ValueError`` naming ``strategy`` without a proxy)."""
+    if proxy is None:
+        raise ValueError("strategy: 'evoi' needs /world/proxy's test start and horizon, and no proxy was received")
+    return GridMDP(grid.features.astype(np.float64), (int(proxy.test_start_row), int(proxy.test_start_col)),
+                   int(proxy.test_horizon))
+
+
+def query_reference(evidence: "WorldEvidence") -> ReferenceJob | None:
+    """The inputs of Rob's ``training_features`` baseline for a paths query: the evidence's proxy
+    planned on its training map (the planner's default reference), counted in the posterior's
+    features; ``None`` without evidence."""
+    job = evidence.job
+    if job is None:
+        return None
+    return ReferenceJob(job.proxy_mdp or job.train_mdp, job.proxy_weights, job.train_mdp.features)
 
 
 def resample_seed(seed: int, num_answers: int) -> int:

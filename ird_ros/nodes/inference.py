@@ -53,29 +53,29 @@ Questions to the designer (docs/spec.md section 7; the evidence's lifetime is do
 :mod:`ird_ros.jobs.inference_queries`):
 
 - ``/ird/query`` (ProposeQuery) proposes ``queries.propose_query(query_mdp, samples, answer_beta,
-  num_options, strategy, seed)`` from the current posterior's samples. Empty ``map`` = the latest
-  test map whose layers are the posterior's feature names (``/world/test_features``, else
-  ``/terrain/features``); ``horizon`` 0 = ``/world/proxy``'s test horizon; ``num_options`` 0 = 2;
-  ``strategy`` "" = ``info_gain``. The map's size is checked from its declared lengths before it
-  is decoded (``max_map_values``), the query's work (``max_query_work``,
-  :func:`ird_ros.jobs.work.query_work`) and one sample's plan table (``worker_memory_mb``) before
-  it is queued. Too few distinct candidate paths (every sample plans the same) is
-  ``success: false`` naming ``num_options``.
+  num_options, strategy, seed, plan)`` from the current posterior's samples, ``plan`` Rob's
+  default plan (per step, the min, the ``training_features`` baseline of the evidence's proxy:
+  ``inference_queries.query_reference``): candidates and EVOI are those of the plan Rob will
+  drive. Empty ``map`` = the latest test map with the posterior's features
+  (``/world/test_features``, else ``/terrain/features``); ``horizon`` 0 = ``/world/proxy``'s test
+  horizon; ``num_options`` 0 = 2; ``strategy`` "" = ``evoi``. The map's size is checked from its
+  declared lengths before it is decoded (``max_map_values``), the query's work
+  (``max_query_work``, :func:`ird_ros.jobs.work.query_work`) and one sample's plan table
+  (``worker_memory_mb``) before it is queued. Too few distinct candidates is ``success: false``
+  naming ``num_options``.
 - ``kind`` "proxies" (Active IRD; "" or "paths" is the path query above; any other is refused
   naming ``kind``): the options are proxy rewards for the evidence's training world, from
   ``proxy_queries.propose_proxy_query`` with the evidence job's maps, proxy and observation
   model (:func:`ird_ros.jobs.inference_queries.proxy_query_job`: ``map`` empty, start and
-  ``horizon`` 0); ``options`` are each proxy's plan on the training map, ``option_proxies`` their
-  weights, ``option_features`` their behaviour counts, which an answer's ChoiceObservation uses.
+  ``horizon`` 0; ``evoi`` re-plans on the latest test map); ``options`` are each proxy's plan on
+  the training map, ``option_proxies`` their weights, ``option_features`` their behaviour counts.
 - ``/ird/answer`` (AnswerQuery) adds ``ChoiceObservation(option_features, chosen, beta)`` to the
   evidence and re-samples ``sample_joint_posterior([proxy] + answers, ..., seed=
   resample_seed(seed, n), initial=<current posterior>)`` (warm start), returns it and publishes it
-  on ``/ird/posterior``. Unknown, forgotten or answered ``query_id``, out-of-range ``chosen`` and a
-  bad ``beta`` (or an ``answered_by`` longer than ``sizes.MAX_TEXT``) fail naming the field; an
-  answer while another is being re-sampled is refused as ``busy``; in every failure the evidence
-  is unchanged.
-- Every proposal and every taken answer is published on ``/ird/queries`` (QueryRecord,
-  ``names.history_qos()``: transient local, the last 100 events).
+  on ``/ird/posterior``. Unknown, forgotten or answered ``query_id``, out-of-range ``chosen``, bad
+  ``beta``, ``answered_by`` over ``sizes.MAX_TEXT`` fail naming the field; an answer during a
+  re-sample is ``busy``; in every failure the evidence is unchanged.
+- Every proposal and taken answer is on ``/ird/queries`` (QueryRecord, ``names.history_qos()``).
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ from ird_ros.graph import names
 from ird_ros.jobs.inference import (InferenceJob, ResampleJob, observation_model, run_inference, run_resample,
                                     sampler_settings)
 from ird_ros.jobs.inference_queries import (ProposalRecord, ProxyQueryJob, QueryJob, WorldEvidence, proxy_query_job,
-                                            resample_seed, run_query)
+                                            proxy_test_mdp, query_reference, resample_seed, run_query)
 from ird_ros.jobs.work import check_query_work
 from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import Arrivals, StartupError, exit_process, run_node
@@ -321,11 +321,13 @@ class InferenceNode(GuardedNode):
         kind = parse(QueryKind, req.kind or QueryKind.PATHS, "kind")
         if self.evidence.posterior is None:
             raise ValueError("evidence: no posterior for the current world: call /ird/infer first")
-        if kind is QueryKind.PROXIES:
-            return proxy_query_job(self.evidence, map_empty=grid_is_empty(req.map),
-                                   start=(req.start_row, req.start_col), horizon=int(req.horizon), num_options=int(req.num_options), strategy=req.strategy,
-                                   seed=int(req.seed), beta=self.answer_beta, max_options=self.max_options,
-                                   max_query_work=self.max_query_work), None
+        if kind is QueryKind.PROXIES:  # evoi re-plans on the latest test map from the proxy's test start
+            evoi = (req.strategy or QueryStrategy.EVOI) == QueryStrategy.EVOI and grid_is_empty(req.map)
+            return proxy_query_job(
+                self.evidence, map_empty=grid_is_empty(req.map), start=(req.start_row, req.start_col),
+                horizon=int(req.horizon), num_options=int(req.num_options), strategy=req.strategy, seed=int(req.seed),
+                beta=self.answer_beta, max_options=self.max_options, max_query_work=self.max_query_work,
+                test=proxy_test_mdp(self._query_map(req), self.proxy) if evoi else None), None
         grid = self._query_map(req)
         h, w, d = grid.shape
         if h * w * d > self.max_map_values:
@@ -341,12 +343,13 @@ class InferenceNode(GuardedNode):
         num_options = int(req.num_options) or 2
         if not 2 <= num_options <= self.max_options:
             raise ValueError(f"num_options: must be in [2, max_options={self.max_options}], got {num_options}")
-        strategy = parse(QueryStrategy, req.strategy or QueryStrategy.INFO_GAIN, "strategy")
+        strategy = parse(QueryStrategy, req.strategy or QueryStrategy.EVOI, "strategy")
         samples = self.evidence.posterior.samples
         check_query_work(len(samples), h, w, horizon, d, num_options, self.max_query_work)
         check_pass_memory("map", h, w, horizon, 8, self.memory_limit)  # one sample's plan table (float64)
         mdp = GridMDP(grid.features.astype(np.float64), start, horizon)
-        return QueryJob(mdp, samples, self.answer_beta, num_options, strategy, int(req.seed)), grid
+        return QueryJob(mdp, samples, self.answer_beta, num_options, strategy, int(req.seed),
+                        query_reference(self.evidence)), grid
 
     async def _on_query(self, req: ProposeQuery.Request, response: ProposeQuery.Response) -> ProposeQuery.Response:
         ev = self.evidence

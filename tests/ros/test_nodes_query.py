@@ -14,6 +14,7 @@ from _query_world import SAMPLER_ARGS, SIZE, Probe, node_args, world_args
 
 from ird_core import posterior as core_posterior
 from ird_core.designer import queries as core_queries
+from ird_core.designer.candidates import PlanSettings
 from ird_core.mdp import GridMDP
 from ird_msgs.srv import ProposeQuery
 from ird_ros import conversions as conv
@@ -112,6 +113,28 @@ def test_query_contract_and_answers(probe: Probe) -> None:
     assert events[1].num_answers == 2 and events[1].beta == ANSWER_BETA  # beta 0 = the node's answer_beta
     probe.spin_until(lambda: len(probe.posteriors) >= n_posteriors + 1, "the second re-sampled posterior")
     assert len(probe.posteriors) == n_posteriors + 1  # the bad answers published nothing
+
+
+def test_the_default_query_is_evoi_for_robs_plan(probe: Probe) -> None:
+    """strategy "" is EVOI among the rich candidates of Rob's default plan (per step, the min, the
+    training-features baseline of the proxy): the very query the library proposes."""
+    world = probe.world()
+    proxy = world.proxy
+    post0 = probe.infer(world)
+    result = probe.query(proxy, num_options=2, strategy="", seed=4)
+    assert result.ok, result.message
+    resp = result.unwrap()
+    assert "evoi" in result.message
+    train = GridMDP(conv.feature_grid_from_msg(world.train).features.astype(np.float64),
+                    (proxy.start_row, proxy.start_col), proxy.horizon)
+    test = GridMDP(conv.feature_grid_from_msg(world.test).features.astype(np.float64),
+                   (proxy.test_start_row, proxy.test_start_col), proxy.test_horizon)
+    reference = core_posterior.proxy_feature_counts(train, np.asarray(proxy.weights, np.float64), train.features)
+    plan = PlanSettings("training_features", reference / (proxy.horizon + 1))
+    expected = core_queries.propose_query(test, post0.samples, ANSWER_BETA, 2, "evoi", 4, plan)
+    np.testing.assert_allclose(resp.option_features, expected.option_features, rtol=1e-12, atol=1e-9)
+    for cells, want in zip(resp.options, expected.option_cells):
+        assert np.array_equal(cells, want)
 
 
 def test_answer_during_resampling_is_refused_as_busy_never_lost(probe: Probe) -> None:
