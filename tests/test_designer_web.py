@@ -471,3 +471,104 @@ def test_an_oversized_websocket_message_closes_that_socket_only(web: WebDesigner
 
     closed, code, state = asyncio.run(asyncio.wait_for(scenario(), 30.0))
     assert closed is None and code == 1009 and json.loads(state)["world"] == WORLD
+
+
+TRAIN_WORLD = {"height": 4, "width": 5, "class_names": WORLD["class_names"],
+               "classes": [[0, 0, 0, 1, 2], [0, 1, 1, 1, 0], [0, 0, 2, 1, 0], [1, 1, 0, 0, 0]], "start": [0, 0],
+               "stamp": 1.0}
+
+
+def proxies_record(query_id: int, chosen: int = -1) -> dict[str, Any]:
+    """A proxy-choice query: two proxies' plans on the 4x5 TRAINING map (off the 3x4 test map)."""
+    out = record(query_id, chosen, "web" if chosen >= 0 else "")
+    out.update(kind="proxies", options=[[[0, 0], [0, 1], [0, 2], [0, 3], [0, 4]], [[0, 0], [1, 0], [2, 0], [3, 0],
+                                                                                     [3, 1]]],
+               option_proxies=[[0.1, -0.2, 1.0, -0.7], [0.1, -0.2, 1.0, 0.4]],
+               proxy_feature_names=["dirt", "grass", "target", "lava"])
+    return out
+
+
+def test_a_proxies_record_is_shown_with_its_kind_weights_and_the_training_map(web: WebDesigner,
+                                                                              node: FakeNode) -> None:
+    from ird_ros.bags.rounds import event_from_msg, record_dict
+    from ird_ros.nodes.designer import proxy_names
+
+    web.show_train_world(TRAIN_WORLD)
+    web.show_query(proxies_record(8))
+    state = request(web, "/state")[1]
+    query = state["query"]
+    assert query["kind"] == "proxies" and query["proxy_feature_names"] == ["dirt", "grass", "target", "lava"]
+    assert query["option_proxies"] == [[0.1, -0.2, 1.0, -0.7], [0.1, -0.2, 1.0, 0.4]]
+    # The options lie on the training map the page is given, not on the (smaller) test map.
+    assert state["train_world"] == TRAIN_WORLD and state["world"] == WORLD
+    cells = [cell for option in query["options"] for cell in option]
+    assert all(0 <= r < TRAIN_WORLD["height"] and 0 <= c < TRAIN_WORLD["width"] for r, c in cells)
+    assert any(c >= WORLD["width"] or r >= WORLD["height"] for r, c in cells)
+    # The page says each kind's question, draws a proxies question on the training map and shows
+    # each option's weights beside its letter.
+    app = (WEB_DIR / "app.js").read_text()
+    for text in ("Which path do you prefer?", "Which reward would you have written for the training world?",
+                 "state.train_world", "proxyWeights(query, k)", "Option ${letter(k)}"):
+        assert text in app, text
+    # Letters in refusals and the thank-you, answered by option index like a paths question.
+    status, reply = answer(web, 8, 2)
+    assert status == 400 and "Option C is out of range" in reply["message"] and "(A..B)" in reply["message"]
+    status, reply = answer(web, 8, 1)
+    assert status == 200 and reply["message"] == THANK_YOU.format(letter="B", query=8) and node.calls == [(8, 1)]
+    web.show_answer(proxies_record(8, chosen=1))
+    assert request(web, "/state")[1]["history"][0]["kind"] == "proxies"
+    # A new world forgets the training map with the queries.
+    web.show_world(dict(WORLD, stamp=5.0))
+    assert request(web, "/state")[1]["train_world"] is None
+    # The node's dict of a decoded record, and the proxy names it adds (w1.. when /world/proxy's do not fit).
+    assert proxy_names(["dirt", "lava"], 2) == ["dirt", "lava"] and proxy_names(["dirt"], 2) == ["w1", "w2"]
+    ns = _ns_record(kind="proxies", option_proxies=[0.5, -1.0, 2.0, 0.0])
+    assert record_dict(event_from_msg(ns))["option_proxies"] == [[0.5, -1.0], [2.0, 0.0]]
+
+
+def _ns_record(**kw: Any) -> Any:
+    from types import SimpleNamespace as NS
+
+    def path(cells: list[tuple[int, int]]) -> Any:
+        return NS(poses=[NS(pose=NS(position=NS(x=c + 0.5, y=r + 0.5))) for r, c in cells])
+
+    return NS(header=NS(stamp=NS(sec=1, nanosec=0)), query_id=1, event="proposed", strategy="random",
+              options=[path([(0, 0), (0, 1)]), path([(0, 0), (1, 0)])], feature_names=["a"],
+              option_features=[1.0, 2.0], information_gain=0.1, chosen=-1, beta=0.0, answered_by="",
+              num_answers=0, **kw)
+
+
+@pytest.mark.parametrize("condition", ["side_effects", "reward_hacking", "pot_of_gold", "latent_raw"])
+def test_the_training_maps_terrain_is_recovered_from_its_features(condition: str) -> None:
+    inst = lavaland.make_instance(condition, 6, size=9, horizon=10)
+    made = None
+    if condition in terrain_view.GAUSSIAN_CONDITIONS:  # what the node makes again from /world/proxy and /world/terrain
+        made = terrain_view.gaussian_instance(condition, 6, inst.test_labels, inst.terrain_names, inst.train_horizon,
+                                              inst.test_start, inst.feature_names)
+        assert made is not None
+    as_published = (inst.train_features.astype(np.float32), inst.test_features.astype(np.float32))
+    got = terrain_view.training_classes(*as_published, inst.test_labels, made)
+    # Every terrain of the training map is on the test map here, so every cell is known.
+    assert set(np.unique(inst.train_labels)) <= set(np.unique(inst.test_labels))
+    np.testing.assert_array_equal(got, inst.train_labels)
+
+
+def test_unknowable_training_cells_are_unknown() -> None:
+    inst = lavaland.make_instance("side_effects", 6, size=9, horizon=10)
+    train, test = inst.train_features, inst.test_features
+    # A terrain missing from the test map cannot be told: its training cells are unknown (255).
+    no_grass = np.where(inst.test_labels == 1, 0, inst.test_labels)
+    test_no_grass = np.where((inst.test_labels == 1)[..., None], test[inst.test_labels == 0][0], test)
+    got = terrain_view.training_classes(train, test_no_grass, no_grass)
+    assert np.all(got[inst.train_labels == 1] == terrain_view.UNKNOWN)
+    assert np.array_equal(got[inst.train_labels != 1], inst.train_labels[inst.train_labels != 1])
+    # Gaussian features without the instance: no terrain has one feature vector, nothing is known.
+    latent = lavaland.make_instance("latent_raw", 6, size=9, horizon=10)
+    assert np.all(terrain_view.training_classes(latent.train_features, latent.test_features,
+                                                latent.test_labels) == terrain_view.UNKNOWN)
+    # An instance whose training features are not the published ones is not used.
+    other = lavaland.make_instance("latent_raw", 7, size=9, horizon=10)
+    assert np.all(terrain_view.training_classes(latent.train_features, latent.test_features, latent.test_labels,
+                                                other) == terrain_view.UNKNOWN)
+    # A test map of other layers tells nothing.
+    assert np.all(terrain_view.training_classes(train, test[..., :2], inst.test_labels) == terrain_view.UNKNOWN)

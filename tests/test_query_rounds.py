@@ -1,5 +1,6 @@
-"""ird_ros.bags.rounds (no ROS): decoding /ird/queries records, pairing rounds, open queries,
-the true returns the simulated designer judges by, and the report rows."""
+"""ird_ros.bags.rounds (no ROS): decoding /ird/queries records (their kind and proxy weights; an
+older record without them is a paths query), pairing rounds, open queries, the true returns the
+simulated designer judges by, and the report rows."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ird_core.vocabulary import QueryKind
 from ird_core.worlds import evaluation, lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES
 from ird_ros.bags import rounds as qr
@@ -55,6 +57,43 @@ def test_event_from_msg_decodes_cells_features_and_stamp() -> None:
     (dict(event="answered", chosen=2), "QueryRecord.chosen"),
 ])
 def test_bad_records_name_the_field(kw: dict[str, Any], field: str) -> None:
+    with pytest.raises(ValueError, match=f"^{field}:"):
+        qr.event_from_msg(record(1, **kw), resolution=RES, origin=ORIGIN)
+
+
+def test_a_proxies_record_decodes_its_kind_and_proxy_weights() -> None:
+    weights = [0.1, -0.2, 1.0, 0.5, 0.3, 0.0]  # q = 2 proxies of p = 3 weights, row-major
+    ev = qr.event_from_msg(record(4, kind="proxies", option_proxies=weights), resolution=RES, origin=ORIGIN)
+    assert ev.kind == "proxies" and ev.kind is QueryKind.PROXIES
+    assert ev.option_proxies.shape == (2, 3) and ev.option_proxies.tolist() == [[0.1, -0.2, 1.0], [0.5, 0.3, 0.0]]
+    shown = qr.record_dict(ev)
+    assert shown["kind"] == "proxies" and shown["option_proxies"] == [[0.1, -0.2, 1.0], [0.5, 0.3, 0.0]]
+    json.dumps(shown)
+    row = qr.round_summary(qr.rounds_from_events([ev])[0])
+    assert row["kind"] == "proxies"
+    # A paths record: kind "paths", no proxies ((q, 0)).
+    paths = qr.event_from_msg(record(5, kind="paths", option_proxies=[]), resolution=RES, origin=ORIGIN)
+    assert paths.kind == "paths" and paths.option_proxies.shape == (2, 0)
+    assert qr.record_dict(paths)["option_proxies"] == [[], []]
+
+
+def test_an_older_record_without_kind_or_proxies_is_a_paths_query() -> None:
+    old = record(6)  # the stand-in has neither field, as a record decoded from an older bag
+    assert not hasattr(old, "kind") and not hasattr(old, "option_proxies")
+    ev = qr.event_from_msg(old, resolution=RES, origin=ORIGIN)
+    assert ev.kind == "paths" and ev.option_proxies.shape == (2, 0)
+    assert qr.event_from_msg(record(6, kind=""), resolution=RES, origin=ORIGIN).kind == "paths"
+    assert qr.round_summary(qr.rounds_from_events([ev])[0])["kind"] == "paths"
+
+
+@pytest.mark.parametrize("kw, field", [
+    (dict(kind="rewards"), "QueryRecord.kind"),
+    (dict(kind="proxies", option_proxies=[]), "QueryRecord.option_proxies"),
+    (dict(kind="proxies", option_proxies=[1.0, 2.0, 3.0]), "QueryRecord.option_proxies"),
+    (dict(kind="proxies", option_proxies=[1.0, float("inf")]), "QueryRecord.option_proxies"),
+    (dict(kind="paths", option_proxies=[1.0, 2.0]), "QueryRecord.option_proxies"),
+])
+def test_bad_kinds_and_proxies_name_the_field(kw: dict[str, Any], field: str) -> None:
     with pytest.raises(ValueError, match=f"^{field}:"):
         qr.event_from_msg(record(1, **kw), resolution=RES, origin=ORIGIN)
 

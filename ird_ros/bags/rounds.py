@@ -5,7 +5,8 @@ ROS-free (numpy only): it reads any object with the fields of ``ird_msgs/msg/Que
 designer node, the bag analysis and the tests share one decoder.
 
 - :func:`event_from_msg`: one QueryRecord -> :class:`QueryRecordData` (validated; option paths as
-  (T+1, 2) cell arrays).
+  (T+1, 2) cell arrays; the query's ``kind`` and, for "proxies", the offered proxy weights. A record
+  of an older bag without ``kind`` / ``option_proxies`` is a "paths" query).
 - :func:`rounds_from_events`: events in arrival order -> :class:`Round` per proposal (with its
   answer, if any). A query id is unique for the inference node's lifetime; a repeated
   ``proposed`` id (the inference node restarted) starts a new round.
@@ -20,12 +21,12 @@ designer node, the bag analysis and the tests share one decoder.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field as dataclass_field
 from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from ird_core.vocabulary import QueryEvent, QueryStrategy, parse
+from ird_core.vocabulary import QueryEvent, QueryKind, QueryStrategy, parse
 from ird_core.worlds.evaluation import evaluate_path
 from ird_ros.geometry import point_cells
 from ird_ros.jobs.ground_truth import evaluation_terrain
@@ -60,6 +61,9 @@ class QueryRecordData:
         answered_by: who answered ("" while unanswered).
         num_answers: answers in the evidence after this event.
         stamp_ns: header stamp in ns.
+        kind: "paths" (options are paths on the query map) or "proxies" (options are proxy rewards,
+            each drawn as its plan on the TRAINING map).
+        option_proxies: (q, p) float64 offered proxy weights for "proxies"; (q, 0) for "paths".
     """
 
     query_id: int
@@ -74,6 +78,8 @@ class QueryRecordData:
     answered_by: str
     num_answers: int
     stamp_ns: int
+    kind: QueryKind = QueryKind.PATHS
+    option_proxies: np.ndarray = dataclass_field(default_factory=lambda: np.zeros((0, 0)))
 
     @property
     def num_options(self) -> int:
@@ -102,7 +108,11 @@ def _err(field: str, problem: str) -> ValueError:
 
 def event_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float] = (0.0, 0.0),
                    field: str = "QueryRecord") -> QueryRecordData:
-    """Decode a QueryRecord; poses are mapped to cells with the map's ``resolution`` and ``origin``.
+    """Decode a QueryRecord; poses are mapped to cells with the map's ``resolution`` and ``origin``
+    (for a "proxies" record, pass the TRAINING map's: its options are plans on that map).
+
+    ``kind`` "" or missing (an older bag) is "paths"; ``option_proxies`` must be empty for "paths"
+    and hold q*p finite values (p >= 1) for "proxies".
 
     Raises:
         ValueError: naming the field (``QueryRecord.option_features: ...``).
@@ -126,6 +136,9 @@ def event_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float]
         raise _err(f"{field}.option_features", f"expected q*d = {q}*{d} = {q * d} values, got {features.size}")
     if not np.all(np.isfinite(features)):
         raise _err(f"{field}.option_features", "non-finite value(s)")
+    kind = parse(QueryKind, str(getattr(msg, "kind", "")) or QueryKind.PATHS.value, f"{field}.kind")
+    proxies = _option_proxies(np.asarray(getattr(msg, "option_proxies", ()), dtype=np.float64).reshape(-1), kind, q,
+                              f"{field}.option_proxies")
     chosen = int(msg.chosen)
     answered = event is QueryEvent.ANSWERED
     if answered and not 0 <= chosen < q:
@@ -135,7 +148,20 @@ def event_from_msg(msg: Any, *, resolution: float = 1.0, origin: Sequence[float]
         feature_names=names, option_features=features.reshape(q, d),
         information_gain=float(msg.information_gain), chosen=chosen if answered else -1,
         beta=float(msg.beta), answered_by=str(msg.answered_by), num_answers=int(msg.num_answers),
-        stamp_ns=stamp_ns(msg.header.stamp))
+        stamp_ns=stamp_ns(msg.header.stamp), kind=kind, option_proxies=proxies)
+
+
+def _option_proxies(flat: np.ndarray, kind: QueryKind, q: int, field: str) -> np.ndarray:
+    """The (q, p) proxy weights of a record (checked against its kind); (q, 0) for "paths"."""
+    if kind is QueryKind.PATHS:
+        if flat.size:
+            raise _err(field, f"a paths query offers no proxies, got {flat.size} value(s)")
+        return np.zeros((q, 0))
+    if flat.size == 0 or flat.size % q:
+        raise _err(field, f"expected q*p values (q = {q} options, p >= 1 proxy features), got {flat.size}")
+    if not np.all(np.isfinite(flat)):
+        raise _err(field, "non-finite value(s)")
+    return flat.reshape(q, -1)
 
 
 def rounds_from_events(events: Iterable[QueryRecordData]) -> list[Round]:
@@ -166,6 +192,7 @@ def round_summary(r: Round, start_ns: int = 0) -> dict[str, Any]:
     p, a = r.proposal, r.answer
     return {
         "query_id": p.query_id,
+        "kind": p.kind.value,
         "strategy": p.strategy.value,
         "information_gain": _finite_or_none(p.information_gain),
         "num_options": p.num_options,
@@ -230,12 +257,15 @@ def _finite_or_none(value: float) -> float | None:
 
 
 def record_dict(ev: QueryRecordData) -> dict[str, Any]:
-    """The JSON-able dict of an event (the page's ``show_query``/``show_answer``, :mod:`ird_ros.web.server`)."""
+    """The JSON-able dict of an event (the page's ``show_query``/``show_answer``, :mod:`ird_ros.web.server`);
+    ``option_proxies`` q lists of p weights ("proxies"), q empty lists ("paths")."""
     return {
         "query_id": ev.query_id,
         "event": ev.event.value,
         "strategy": ev.strategy.value,
+        "kind": ev.kind.value,
         "options": [o.tolist() for o in ev.options],
+        "option_proxies": ev.option_proxies.tolist(),
         "feature_names": list(ev.feature_names),
         "option_features": ev.option_features.tolist(),
         "information_gain": _finite_or_none(ev.information_gain),

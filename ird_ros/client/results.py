@@ -17,6 +17,7 @@ numpy arrays and plain values, plus the message they came from where a caller ne
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
@@ -36,6 +37,7 @@ __all__ = [
     "decode_answer",
     "Plan",
     "Query",
+    "with_query_kind",
     "RobDrive",
     "WorldMessages",
 ]
@@ -123,14 +125,40 @@ class Plan:
 @dataclass(frozen=True)
 class Query:
     """An ``/ird/query`` answer (docs/spec.md section 7): ``options`` are q (T+1, 2) int64 cell
-    arrays on the query map, ``option_features`` (q, d) their feature counts, ``information_gain``
-    the mutual information (nats) between the designer's answer and the true reward."""
+    arrays, on the query map for ``kind`` "paths", each offered proxy's plan on the TRAINING map
+    for "proxies"; ``option_features`` (q, d) their feature counts (a proxy's behaviour counts),
+    ``information_gain`` the mutual information (nats) between the designer's answer and the true
+    reward; ``option_proxies`` (q, p) the offered proxy weights ((q, 0) for "paths") and
+    ``proxy_feature_names`` their p names (empty for "paths").
+
+    :func:`decode_answer` fills ``kind``, ``option_proxies`` and ``proxy_feature_names`` from the
+    response (:func:`with_query_kind`; a response without them, an older server's, is "paths")."""
 
     query_id: int
     options: tuple[np.ndarray, ...]
     feature_names: tuple[str, ...]
     option_features: np.ndarray
     information_gain: float
+    kind: str = "paths"
+    option_proxies: np.ndarray = dataclass_field(default_factory=lambda: np.zeros((0, 0)))
+    proxy_feature_names: tuple[str, ...] = ()
+
+
+def with_query_kind(query: Query, response: Any) -> Query:
+    """``query`` with the ``/ird/query`` response's ``kind`` ("" or missing = "paths"),
+    ``option_proxies`` reshaped to (q, p) and ``proxy_feature_names``.
+
+    Raises:
+        ValueError: naming ``option_proxies`` when its length is not q times the names' count.
+    """
+    kind = str(getattr(response, "kind", "")) or "paths"
+    names = tuple(str(n) for n in getattr(response, "proxy_feature_names", ()))
+    flat = np.asarray(getattr(response, "option_proxies", ()), dtype=np.float64).reshape(-1)
+    q = len(query.options)
+    p = len(names) if names else (flat.size // q if q and flat.size % q == 0 else -1)
+    if p < 0 or flat.size != q * p:
+        raise ValueError(f"option_proxies: expected q*p = {q}*{len(names)} values, got {flat.size}")
+    return dataclasses.replace(query, kind=kind, option_proxies=flat.reshape(q, p), proxy_feature_names=names)
 
 
 @dataclass(frozen=True)
@@ -172,9 +200,12 @@ class WorldMessages:
 
 
 def decode_answer(service: str, response: Any, decode: Callable[[Any], T] | None) -> CallResult[T]:
-    """The answer as a CallResult; without ``decode`` the payload of a DONE answer is the response."""
+    """The answer as a CallResult; without ``decode`` the payload of a DONE answer is the response.
+    A decoded :class:`Query` gets the response's kind and proxies (:func:`with_query_kind`)."""
     status, named = classify_answer(bool(response.success), str(response.message))
     value = None
     if status is CallStatus.DONE:
         value = decode(response) if decode is not None else response
+        if isinstance(value, Query):
+            value = with_query_kind(value, response)  # type: ignore[assignment]
     return CallResult(service, status, str(response.message), value, named, response)

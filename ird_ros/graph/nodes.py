@@ -140,8 +140,9 @@ NODES: tuple[NodeSpec, ...] = (
         name=names.NODE_DESIGNER,
         module="ird_ros.nodes.designer",
         publishes=(),
-        subscribes=(names.TOPIC_QUERIES, names.TOPIC_TERRAIN, names.TOPIC_PROXY, names.TOPIC_POSTERIOR,
-                    names.TOPIC_RISK_MAP),
+        # /world/train_features and /world/test_features: the training map's terrain (proxies queries)
+        subscribes=(names.TOPIC_QUERIES, names.TOPIC_TERRAIN, names.TOPIC_PROXY, names.TOPIC_TRAIN_FEATURES,
+                    names.TOPIC_TEST_FEATURES, names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_PLAN_INFO),
         services=(),
         ready_topics=(),
         default=False,

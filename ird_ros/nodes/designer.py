@@ -10,9 +10,18 @@ node is refused by the inference node as "already answered" or "busy" and change
 Records stamped before the current ``/world/terrain`` belong to a forgotten world and are ignored
 (the inference node forgets the evidence with the world).
 
+Two kinds of question (``QueryRecord.kind``): "paths" (options are paths on the test map) and
+"proxies" (Active IRD: options are proxy rewards the designer might have written, each shown as
+its plan on the TRAINING map). The training map's terrain is not published as such: the node
+reads ``/world/train_features`` and ``/world/test_features`` and takes each training cell's
+terrain from the test map's feature vectors, or from the Gaussian world's instance made again
+(:func:`ird_ros.web.terrain_view.training_classes`); it waits for the training map of the current
+generation (same stamp as ``/world/terrain``) before it shows or answers a proxies query.
+
 - ``mode: simulated``: each open query is answered with ``ird_core.designer.queries.SimulatedDesigner
   (beta, seed)`` on the options' TRUE returns (:func:`ird_ros.bags.rounds.option_returns`: the
-  ground-truth terrain of ``/world/terrain`` and the per-terrain true rewards of ``/world/proxy``),
+  ground-truth terrain of ``/world/terrain``, for "proxies" the training map's terrain as
+  ``ird_core.designer.proxy_queries.simulated_proxy_answer`` does; the true rewards of ``/world/proxy``),
   ``answered_by: "simulated"``. A ``busy`` refusal is retried after ``retry_period``; any other
   refusal (a forgotten world's query) is final.
 - ``mode: web``: ``ird_ros.web.server.WebDesigner`` serves a page on ``host:port`` in its own
@@ -24,7 +33,9 @@ Records stamped before the current ``/world/terrain`` belong to a forgotten worl
   :mod:`ird_ros.bags.rounds` (``record_dict``) and :func:`world_dict`, :func:`posterior_dict`,
   :func:`risk_dict` and :func:`plan_dict` here. In a Gaussian-feature world (latent conditions)
   the posterior is shown per terrain, not per observation dimension (:mod:`ird_ros.web.terrain_view`:
-  the world's instance is made again from ``/world/proxy`` and ``/world/terrain``). The page
+  the world's instance is made again from ``/world/proxy`` and ``/world/terrain``). A proxies
+  query is drawn on the training map (:func:`world_dict` of it, ``show_train_world``), each option
+  with its proxy's weights (``proxy_feature_names``: ``/world/proxy``'s feature names). The page
   names options by letters and never shows sampler statistics after an answer (they are logged);
   when the node shuts down the page is told the graph stopped.
 
@@ -43,8 +54,8 @@ import numpy as np
 from nav_msgs.msg import OccupancyGrid
 
 from ird_core.designer.queries import SimulatedDesigner
-from ird_core.vocabulary import QueryEvent, values
-from ird_msgs.msg import PlanInfo, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
+from ird_core.vocabulary import QueryEvent, QueryKind, values
+from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
 from ird_msgs.srv import AnswerQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
@@ -89,11 +100,18 @@ HISTORY_SETTLE = 0.2
 
 
 def world_dict(terrain: conv.TerrainGridData, start: tuple[int, int] | None, stamp: float) -> dict[str, Any]:
-    """The page's map: ``classes[row][col]`` (row 0 = bottom), class names, Rob's start."""
+    """The page's map: ``classes[row][col]`` (row 0 = bottom, 255 unknown), class names, the start
+    (Rob's on the test map; the training start on the training map)."""
     h, w = terrain.classes.shape
     return {"height": h, "width": w, "class_names": list(terrain.class_names),
             "classes": terrain.classes.astype(int).tolist(), "start": None if start is None else list(start),
             "stamp": stamp}
+
+
+def proxy_names(names: Any, p: int) -> list[str]:
+    """The p proxy features' names (``/world/proxy``'s when there are p of them, else w1..wp)."""
+    names = [str(n) for n in (names or ())]
+    return names if len(names) == p else [f"w{i + 1}" for i in range(p)]
 
 
 def posterior_dict(post: conv.PosteriorData, num_answers: int, stamp: float, *, instance: Any = None,
@@ -141,6 +159,9 @@ class DesignerNode(GuardedNode):
         self._events: list[qr.QueryRecordData] = []
         self.terrain: conv.TerrainGridData | None = None
         self.terrain_ns = 0  # header stamp (ns) of the world's terrain
+        self.grids: dict[str, tuple[int, conv.FeatureGridData]] = {}  # train / test features: (stamp ns, grid)
+        self._train_key: tuple[Any, ...] | None = None
+        self._train_classes: np.ndarray | None = None
         self.proxy: ProxyReward | None = None
         self.posterior: RewardPosterior | None = None
         self.risk: OccupancyGrid | None = None
@@ -162,6 +183,8 @@ class DesignerNode(GuardedNode):
         self.create_subscription(QueryRecord, names.TOPIC_QUERIES, self._on_record, names.history_qos())
         self.create_subscription(TerrainGrid, names.TOPIC_TERRAIN, self._on_terrain, latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
+        for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES):
+            self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_grid(t, msg), latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
         self.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self._on_risk, latched)
         self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_plan_info, latched)
@@ -194,6 +217,32 @@ class DesignerNode(GuardedNode):
         self._show_world()
         self._update()
 
+    def _on_grid(self, topic: str, msg: FeatureGrid) -> None:
+        try:
+            self.grids[topic] = (stamp_ns(msg.header.stamp), conv.feature_grid_from_msg(msg, field=topic))
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad feature map: {exc}")
+            return
+        self._show_world()
+        self._update()
+
+    def train_map(self) -> tuple[conv.FeatureGridData, np.ndarray] | None:
+        """The current world's training map and its classes (:func:`terrain_view.training_classes`),
+        or None until both feature maps of the terrain's generation are in."""
+        train, test = self.grids.get(names.TOPIC_TRAIN_FEATURES), self.grids.get(names.TOPIC_TEST_FEATURES)
+        if self.terrain is None or train is None or test is None or not train[0] == test[0] == self.terrain_ns:
+            return None
+        instance = None
+        if self.proxy is not None and self.proxy.condition in terrain_view.GAUSSIAN_CONDITIONS:
+            instance = self._gaussian_instance(train[1].layers)
+        key = (self.terrain_ns, instance is not None)
+        if key != self._train_key:
+            self._train_key = key
+            self._train_classes = terrain_view.training_classes(train[1].features, test[1].features,
+                                                                self.terrain.classes, instance)
+        assert self._train_classes is not None
+        return train[1], self._train_classes
+
     def _on_proxy(self, msg: ProxyReward) -> None:
         self.proxy = msg
         self._show_world()
@@ -225,15 +274,21 @@ class DesignerNode(GuardedNode):
         cells); records stamped before the world's terrain belong to a forgotten world."""
         if self.terrain is None:
             return []
-        key = (len(self.records), self.terrain_ns)  # the timers call this often: decode on change only
+        train = self.train_map()
+        key = (len(self.records), self.terrain_ns, train is not None)  # decode on change only
         if self._events_key == key:
             return self._events
         out = []
         for msg in self.records:
             if stamp_ns(msg.header.stamp) < self.terrain_ns:
                 continue
+            grid: Any = self.terrain
+            if msg.kind == QueryKind.PROXIES:  # options are plans on the training map
+                if train is None:
+                    continue  # decoded once the training map is in
+                grid = train[0]
             try:
-                out.append(qr.event_from_msg(msg, resolution=self.terrain.resolution, origin=self.terrain.origin,
+                out.append(qr.event_from_msg(msg, resolution=grid.resolution, origin=grid.origin,
                                              field=names.TOPIC_QUERIES))
             except ValueError as exc:
                 self.get_logger().error(f"ignoring a bad query record: {exc}")
@@ -245,7 +300,10 @@ class DesignerNode(GuardedNode):
         if self.web is not None:
             new = [ev for ev in events if (ev.query_id, ev.event, ev.stamp_ns) not in self._shown]
             for ev in new:
-                (self.web.show_query if ev.event is QueryEvent.PROPOSED else self.web.show_answer)(qr.record_dict(ev))
+                shown = qr.record_dict(ev)
+                shown["proxy_feature_names"] = proxy_names(None if self.proxy is None else self.proxy.feature_names,
+                                                           ev.option_proxies.shape[1])
+                (self.web.show_query if ev.event is QueryEvent.PROPOSED else self.web.show_answer)(shown)
                 self._shown.add((ev.query_id, ev.event, ev.stamp_ns))
             if any(ev.event is QueryEvent.ANSWERED for ev in new):
                 self._show_posterior()  # the posterior may have arrived before its answer's record
@@ -260,8 +318,14 @@ class DesignerNode(GuardedNode):
         if key in self._in_flight or key in self._done or not self._client.service_is_ready():
             return
         assert self.terrain is not None and self.proxy is not None
+        classes = self.terrain.classes
+        if proposal.kind is QueryKind.PROXIES:  # the true return of each proxy's plan on the TRAINING map
+            train = self.train_map()
+            if train is None:
+                return  # events() decodes a proxies record only with the training map: not reached
+            classes = train[1]
         try:
-            returns = qr.option_returns(self.terrain.classes, self.terrain.class_names, self.proxy.terrain_names,
+            returns = qr.option_returns(classes, self.terrain.class_names, self.proxy.terrain_names,
                                         self.proxy.true_terrain_rewards, proposal.options)
         except ValueError as exc:
             self.get_logger().error(f"query {proposal.query_id}: cannot judge the options: {exc}")
@@ -271,8 +335,8 @@ class DesignerNode(GuardedNode):
         request = AnswerQuery.Request(query_id=proposal.query_id, chosen=chosen, beta=0.0,
                                       answered_by=DesignerMode.SIMULATED.value)
         self._in_flight.add(key)
-        self.get_logger().info(f"query {proposal.query_id}: true returns {np.round(returns, 3).tolist()}, "
-                               f"answering option {chosen}")
+        self.get_logger().info(f"query {proposal.query_id}: {proposal.kind} options, true returns "
+                               f"{np.round(returns, 3).tolist()}, answering option {chosen}")
         self._client.call_async(request).add_done_callback(lambda fut, k=key: self._on_answered(k, fut))
 
     def _on_answered(self, key: tuple[int, int], future: Any) -> None:
@@ -296,6 +360,11 @@ class DesignerNode(GuardedNode):
             return
         start = None if self.proxy is None else (int(self.proxy.test_start_row), int(self.proxy.test_start_col))
         self.web.show_world(world_dict(self.terrain, start, self.terrain_ns / 1e9))
+        train = self.train_map()
+        if train is not None:
+            start = None if self.proxy is None else (int(self.proxy.start_row), int(self.proxy.start_col))
+            self.web.show_train_world(world_dict(conv.TerrainGridData(train[1], self.terrain.class_names), start,
+                                                 self.terrain_ns / 1e9))
 
     def _show_posterior(self) -> None:
         if self.web is None or self.posterior is None:

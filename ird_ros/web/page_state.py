@@ -1,6 +1,7 @@
 """What the designer page shows, and what a click may change (ROS-free; used by ``ird_ros.web.server``).
 
-``PageState`` holds the world, the queries of this world, the answers being sent, the posterior,
+``PageState`` holds the world (the test map), the training map (``train_world``: where a
+proxies query's options are drawn), the queries of this world, the answers being sent, the posterior,
 the risk map and whether the graph has finished; ``snapshot()`` is the JSON the page renders.
 ``refusal`` says why a click must not be sent. Options are named by letters everywhere the page
 shows text (``option_letter``: A, B, C, ...; index 0 is A).
@@ -30,6 +31,7 @@ class PageState:
     def __init__(self) -> None:
         self.version = 0
         self.world: dict[str, Any] | None = None
+        self.train_world: dict[str, Any] | None = None  # the training map (proxies queries)
         self.queries: dict[int, dict[str, Any]] = {}  # query_id -> latest record, this world
         self.stale: set[int] = set()  # ids of earlier worlds' queries
         self.pending: set[int] = set()  # ids whose answer is being sent from this page
@@ -53,6 +55,7 @@ class PageState:
         return {
             "version": self.version,
             "world": self.world,
+            "train_world": self.train_world,
             "query": self.open_query(),
             "pending": sorted(self.pending),
             "history": self.history(),

@@ -7,6 +7,7 @@ HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.no
     web = WebDesigner("127.0.0.1", 8765, on_answer, logger=node.get_logger())
     web.start()                        # listening when it returns; web.url has the real port
     web.show_world(world)              # terrain to draw (a new world makes older queries stale)
+    web.show_train_world(train_world)  # the training map (a proxies query's options are drawn on it)
     web.show_query(record)             # a new open query
     web.show_answer(record)            # a query got answered (by anyone)
     web.show_posterior(posterior, risk_map)
@@ -15,7 +16,11 @@ HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.no
 
 The dict layouts are documented in the ``show_*`` docstrings (built by
 :func:`ird_ros.bags.rounds.record_dict` and ``ird_ros.nodes.designer``'s ``*_dict``; the
-conversation is docs/spec.md section 7). Every ``show_*`` is thread-safe and non-blocking: it updates the state
+conversation is docs/spec.md section 7). A query's ``kind`` says what the designer picks: "paths"
+(options are paths on the test map: "Which path do you prefer?") or "proxies" (options are proxy
+rewards, ``option_proxies`` q lists of weights named by ``proxy_feature_names``, each drawn as its
+plan on the training map: "Which reward would you have written for the training world?"); a
+click is an option index for both. Every ``show_*`` is thread-safe and non-blocking: it updates the state
 under a lock and schedules a push of the new state to every open page over a WebSocket, so the
 page updates without a reload.
 
@@ -325,11 +330,21 @@ class WebDesigner:
                 self._state.queries.clear()
                 self._state.accepted.clear()
                 self._state.risk_map = None
+                self._state.train_world = None
             self._state.world = copy.deepcopy(world)
         self._changed()
 
+    def show_train_world(self, world: dict[str, Any]) -> None:
+        """The training map, laid out as :meth:`show_world`'s (``start`` the training start);
+        a proxies query's options are its proxies' plans on it."""
+        with self._lock:
+            self._state.train_world = copy.deepcopy(world)
+        self._changed()
+
     def show_query(self, record: dict[str, Any]) -> None:
-        """A new open query: ``query_id``, ``options`` (q lists of [row, col] cells),
+        """A new open query: ``query_id``, ``kind`` ("paths" or "proxies"; missing = "paths"),
+        ``options`` (q lists of [row, col] cells; for "proxies" on the training map),
+        ``option_proxies`` (q lists of p weights, "proxies"), ``proxy_feature_names`` (p names),
         ``feature_names``, ``option_features`` (q x d), ``information_gain``, ``strategy``, ..."""
         self._put_record(record)
 

@@ -1,5 +1,6 @@
-"""ird_ros.client: how answers are classified (one place for "busy"), what a client reports when
-the graph is not in its domain, and the minimal inference client (``ird-infer``) end to end."""
+"""ird_ros.client: how answers are classified (one place for "busy"), a query result's kind and
+proxy weights, what a client reports when the graph is not in its domain, and the minimal
+inference client (``ird-infer``) end to end."""
 
 from __future__ import annotations
 
@@ -48,6 +49,58 @@ def test_unwrap_raises_unless_done() -> None:
     with pytest.raises(CallFailed, match="/ird/plan refused: weights: bad") as info:
         refused.unwrap()
     assert info.value.status is CallStatus.REFUSED and not refused.ok
+
+
+def _query_response(kind: str, proxies: list[float], proxy_names: list[str]) -> Any:
+    """A ProposeQuery response with two options on a 3x3 map (resolution 1, origin 0)."""
+    from nav_msgs.msg import Path
+    from geometry_msgs.msg import PoseStamped
+
+    from ird_msgs.srv import ProposeQuery
+
+    def path(cells: list[tuple[int, int]]) -> Path:
+        out = Path()
+        for r, c in cells:
+            pose = PoseStamped()
+            pose.pose.position.x, pose.pose.position.y = c + 0.5, r + 0.5
+            out.poses.append(pose)
+        return out
+
+    return ProposeQuery.Response(success=True, message="query 4: 2 options", query_id=4, kind=kind,
+                                 options=[path([(0, 0), (0, 1)]), path([(0, 0), (1, 0)])],
+                                 option_proxies=proxies, proxy_feature_names=proxy_names,
+                                 feature_names=["a", "b"], option_features=[1.0, 0.0, 0.0, 1.0],
+                                 information_gain=0.5)
+
+
+def _decode_query(response: Any) -> Any:
+    """What IrdClient.propose_query does with a response: its decoder, then decode_answer."""
+    import numpy as np
+
+    from ird_ros import conversions as conv
+    from ird_ros.client.results import decode_answer
+
+    grid = conv.feature_grid_to_msg(np.zeros((3, 3, 2), np.float32), ("a", "b"))
+    return decode_answer(names.SRV_QUERY, response, lambda r: IrdClient._decode_query(r, grid))
+
+
+def test_a_query_result_carries_its_kind_and_proxy_weights() -> None:
+    import numpy as np
+
+    from ird_ros.client import Query
+
+    result = _decode_query(_query_response("proxies", [0.1, -0.2, 1.0, 0.5, 0.3, 0.0], ["dirt", "grass", "lava"]))
+    query = result.unwrap()
+    assert isinstance(query, Query) and query.kind == "proxies" and query.query_id == 4
+    assert query.proxy_feature_names == ("dirt", "grass", "lava")
+    np.testing.assert_array_equal(query.option_proxies, [[0.1, -0.2, 1.0], [0.5, 0.3, 0.0]])
+    assert [o.tolist() for o in query.options] == [[[0, 0], [0, 1]], [[0, 0], [1, 0]]]
+    # A paths query (and an older server's "" kind): "paths", no proxies.
+    for kind in ("paths", ""):
+        paths = _decode_query(_query_response(kind, [], [])).unwrap()
+        assert paths.kind == "paths" and paths.option_proxies.shape == (2, 0) and paths.proxy_feature_names == ()
+    with pytest.raises(ValueError, match="^option_proxies:"):
+        _decode_query(_query_response("proxies", [0.1, 0.2, 0.3], ["dirt", "grass"]))
 
 
 @pytest.fixture

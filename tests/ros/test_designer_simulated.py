@@ -1,8 +1,10 @@
 """The simulated designer node over real DDS (world + inference + designer, 8x8, T = 12):
 every proposal of a mission gets exactly one answer, the one ``SimulatedDesigner(beta, seed)``
 gives on the options' true returns (``evaluation.true_return`` on the world's terrain), recorded
-on /ird/queries; a designer killed with a query open leaves the inference node serving, and a
-respawned one answers the open query from the latched history."""
+on /ird/queries; a proxy-choice query ("proxies") is answered on the true returns of each proxy's
+plan on the TRAINING map (``proxy_queries.proxy_option_returns``); a designer killed with a query
+open leaves the inference node serving, and a respawned one answers the open query from the
+latched history."""
 
 from __future__ import annotations
 
@@ -14,12 +16,14 @@ import pytest
 from _query_world import SAMPLER_ARGS, Probe, node_args, world_args
 from nav_msgs.msg import OccupancyGrid
 
+from ird_core.designer import proxy_queries
 from ird_core.designer.queries import SimulatedDesigner
 from ird_core.vocabulary import QueryEvent
 from ird_core.worlds import evaluation
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
+from ird_msgs.srv import ProposeQuery
 from ird_ros.graph.domains import DomainLease
 from ird_ros.testing import NodeProcess, running_nodes, spawn_node_process
 
@@ -144,3 +148,32 @@ def test_designer_killed_while_answering_loses_nothing(mission: Mission, ros_dom
         assert answer.num_answers == 2
         assert len(mission.answers(first)) == 1 and len(mission.answers(second)) == 1
         mission.procs.remove(again)
+
+
+def test_simulated_designer_answers_a_proxies_query_on_the_training_map(mission: Mission,
+                                                                        ros_domain: DomainLease) -> None:
+    """The options are proxies' plans on the training map: the designer judges them there (as
+    ``proxy_queries.simulated_proxy_answer``), not on the test map Rob drives."""
+    train = conv.feature_grid_from_msg(mission.ird.latest(names.TOPIC_TRAIN_FEATURES, timeout=60.0))
+    assert train.layers == ("dirt", "grass", "target", "lava")  # side_effects: one indicator per terrain
+    train_labels = np.argmax(train.features, axis=-1)
+    with _designer(ros_domain) as designer:
+        mission.procs.append(designer)
+        result = mission.ird.propose_query(ProposeQuery.Request(num_options=3, strategy="random", seed=4),
+                                           kind="proxies", timeout=120.0)
+        assert result.ok, result.message
+        query = result.unwrap()
+        assert query.kind == "proxies" and query.option_proxies.shape[0] == 3
+        answer = mission.wait_answered(query.query_id)
+        assert answer.kind == "proxies" and answer.answered_by == "simulated" and answer.num_answers == 1
+        proposal = [e for e in mission.events() if e.query_id == query.query_id and e.event == QueryEvent.PROPOSED][0]
+        asked = proxy_queries.ProxyQuery(proposal.option_proxies, proposal.option_features, proposal.options,
+                                         proposal.information_gain, proposal.strategy.value, 3)
+        returns = proxy_queries.proxy_option_returns(asked, train_labels)
+        # A fresh designer (same seed): its first choice, Boltzmann on the training-map returns.
+        assert answer.chosen == SimulatedDesigner(DESIGNER_BETA, DESIGNER_SEED).answer(returns)
+        logged = designer.wait_for_output(f"query {query.query_id}: proxies options, true returns", timeout=30.0)
+        assert f"true returns {np.round(returns, 3).tolist()}," in logged, logged
+        test_returns = [evaluation.true_return(mission.labels, cells) for cells in proposal.options]
+        assert not np.allclose(returns, test_returns), "the test map would give the same returns: a weak check"
+        mission.procs.remove(designer)

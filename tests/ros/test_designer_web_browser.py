@@ -7,10 +7,14 @@ page, sees the options, clicks one, and the test sees the new posterior on /ird/
 the answer in the page's history; beside the risk map it says which risk measure the current plan
 (a per-step CVaR plan asked for first) uses. It saves the page as out/designer_web.png. The
 options are letters on the buttons, in the thank-you line (no sampler statistics) and in the
-history; when the designer node stops, the page shows that the graph ended.
+history; a proxy-choice question ("proxies") then shows its kind ("Which reward would you have
+written for the training world?"), its options with each proxy's weights, drawn on the training
+map, and is answered by a click like a path question; when the designer node stops, the page
+shows that the graph ended.
 
 Without ROS, against a ``WebDesigner`` of the test: a Gaussian-feature world's posterior is
-shown per terrain, the page shows "graph stopped" when the server stops, and "graph gone" after
+shown per terrain, a proxies question is drawn on the training map with its weights and a paths
+question on the test map, the page shows "graph stopped" when the server stops, and "graph gone" after
 a few failed reconnects when the server's process is killed (no end state sent).
 
 A missing browser or driver fails the test (apt-get install -y chromium chromium-driver).
@@ -205,6 +209,32 @@ def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver
         SCREENSHOT.parent.mkdir(exist_ok=True)
         assert browser.save_screenshot(str(SCREENSHOT)), "screenshot failed"
 
+        # A proxy-choice question: its kind, its options with their weights, on the training map.
+        from ird_msgs.srv import ProposeQuery
+
+        proxies = probe.ird.propose_query(ProposeQuery.Request(num_options=2, strategy="info_gain", seed=3),
+                                          kind="proxies", timeout=300.0)
+        assert proxies.ok, proxies.message
+        asked = proxies.unwrap()
+        buttons = shown_query(browser, asked.query_id)
+        assert PROXIES_TEXT in browser.find_element(By.ID, "query-title").text
+        assert [b.text.splitlines()[0] for b in buttons] == ["Option A", "Option B"]
+        for k, button in enumerate(buttons):  # each proxy's weights beside its letter
+            weights = button.find_element(By.CSS_SELECTOR, ".weights").text
+            for name, w in zip(asked.proxy_feature_names, asked.option_proxies[k]):
+                assert f"{name} {'+' if w >= 0 else '−'}{abs(w):.2f}" in weights, (weights, name, w)
+        assert browser.find_element(By.ID, "map").get_attribute("data-map") == "training"
+        train_shown = browser.execute_script("return state.train_world")
+        assert [train_shown["height"], train_shown["width"]] == [SIZE, SIZE] and train_shown["start"] == \
+            [proxy.start_row, proxy.start_col]
+        assert browser.execute_script("return state.query.options") == [o.tolist() for o in asked.options]
+        seen = len(probe.posteriors)
+        buttons[0].click()
+        probe.until(lambda: any(r.query_id == asked.query_id and r.chosen == 0 and r.answered_by == "web"
+                                and r.kind == "proxies" for r in probe.records), "the answered proxies record")
+        assert message_text(browser, "Thank you").startswith(f"Thank you: Option A recorded for question #{asked.query_id}")
+        probe.until(lambda: len(probe.posteriors) > seen, "the posterior after the proxies answer")
+
         # The designer node stops: the page shows that the graph ended, not "reconnecting…".
         assert graph["procs"][-1].stop() == 0
         finished = finished_text(browser)
@@ -232,6 +262,57 @@ QUERY = {"query_id": 3, "event": "proposed", "strategy": "info_gain",
          "options": [[[0, 0], [0, 1], [0, 2]], [[0, 0], [1, 0], [2, 0]], [[0, 0], [1, 0], [1, 1]]],
          "feature_names": [f"obs_{i:02d}" for i in range(50)], "option_features": [[0.0] * 50] * 3,
          "information_gain": 0.25, "chosen": -1, "beta": 0.0, "answered_by": "", "num_answers": 0, "stamp": 2.0}
+
+
+PROXIES_TEXT = "Which reward would you have written for the training world?"
+PATHS_TEXT = "Which path do you prefer?"
+TRAIN_WORLD = {"height": 4, "width": 5, "class_names": WORLD["class_names"],
+               "classes": [[0, 0, 0, 1, 2], [0, 1, 1, 1, 0], [0, 0, 2, 1, 0], [1, 1, 0, 0, 0]], "start": [0, 0],
+               "stamp": 1.0}
+PROXIES = dict(QUERY, query_id=4, kind="proxies", feature_names=["dirt", "grass", "target", "lava"],
+               options=[[[0, 0], [0, 1], [0, 2], [0, 3], [0, 4]], [[0, 0], [1, 0], [2, 0], [3, 0], [3, 1]]],
+               option_features=[[4.0, 0.0, 1.0, 0.0], [3.0, 2.0, 0.0, 0.0]],
+               option_proxies=[[0.1, -0.2, 1.0, -0.75], [0.1, -0.2, 1.0, 0.5]],
+               proxy_feature_names=["dirt", "grass", "target", "lava"])
+
+
+def test_the_two_kinds_of_question_without_ros(browser: webdriver.Chrome) -> None:
+    """A proxies question: its kind, letters, weights, options on the training map; then a paths
+    question on the test map; both answered by option index."""
+    from ird_ros.web.server import WebDesigner
+
+    clicks: list[tuple[int, int]] = []
+    web = WebDesigner("127.0.0.1", 0, lambda q, c: (clicks.append((q, c)) or True, ""))
+    web.start()
+    try:
+        web.show_world(WORLD)
+        web.show_train_world(TRAIN_WORLD)
+        web.show_query(PROXIES)
+        browser.get(web.url)
+        buttons = shown_query(browser, PROXIES["query_id"])
+        assert browser.find_element(By.ID, "query-title").text == f"Question #4: {PROXIES_TEXT}"
+        assert [b.text.splitlines()[0] for b in buttons] == ["Option A", "Option B"]
+        assert [" ".join(b.find_element(By.CSS_SELECTOR, ".weights").text.split()) for b in buttons] == [
+            "reward: dirt +0.10 grass −0.20 target +1.00 lava −0.75",
+            "reward: dirt +0.10 grass −0.20 target +1.00 lava +0.50"]
+        canvas = browser.find_element(By.ID, "map")
+        assert canvas.get_attribute("data-map") == "training"
+        assert browser.find_element(By.ID, "map-caption").text.startswith("Training map")
+        # The buttons read the options on the training map: option A ends on its target cell (0, 4).
+        assert "ends on target" in buttons[0].text and "5 cells" in buttons[0].text
+        browser.execute_script("sendAnswer(arguments[0], 1);", PROXIES["query_id"])
+        assert message_text(browser, "Thank you") == \
+            "Thank you: Option B recorded for question #4; Rob's beliefs are updated."
+        assert clicks == [(4, 1)]
+        web.show_answer(dict(PROXIES, event="answered", chosen=1, answered_by="web", num_answers=1))
+        web.show_query(dict(QUERY, query_id=5, kind="paths", option_proxies=[[], [], []]))
+        shown_query(browser, 5)
+        WebDriverWait(browser, WAIT).until(lambda d: PATHS_TEXT in d.find_element(By.ID, "query-title").text,
+                                           "the paths question never said its kind")
+        assert canvas.get_attribute("data-map") == "test" and not browser.find_elements(By.CSS_SELECTOR, ".weights")
+        assert "rewards" in browser.find_element(By.ID, "history-4").text
+    finally:
+        web.stop()
 
 
 def test_letters_terrains_and_the_end_without_ros(browser: webdriver.Chrome) -> None:

@@ -1,5 +1,8 @@
 // The designer page: draws the state pushed by the server (GET /state, then WebSocket /ws)
 // and sends clicks as POST /answer. Row 0 of every grid is the BOTTOM row of the drawing.
+// Two kinds of question: "paths" (options are paths on the test map Rob will drive) and "proxies"
+// (options are rewards the designer might have written, each drawn as its plan on the TRAINING
+// map, with its weights beside the option's letter). A click sends the option's index either way.
 "use strict";
 
 // Every colour comes from IRD_STYLE (colors.js, generated from ird_core/style.py like every picture's).
@@ -18,6 +21,18 @@ let ended = null;  // null while the graph runs, else the text of the finished s
 const $ = (id) => document.getElementById(id);
 const letter = (k) => String.fromCharCode(65 + k);
 const pathColor = (k) => IRD_STYLE.options[k % IRD_STYLE.options.length];
+const kindOf = (query) => (query && query.kind === "proxies" ? "proxies" : "paths");
+// What each kind asks, and the map its options are drawn on.
+const KIND_TEXT = {
+  paths: {question: "Which path do you prefer?", map: "Test map: where Rob will drive"},
+  proxies: {question: "Which reward would you have written for the training world?",
+            map: "Training map: where you wrote the reward"},
+};
+// The map the page draws: the training map for a proxies question, else the test map.
+function shownMap() {
+  const query = state && state.query;
+  return kindOf(query) === "proxies" ? state.train_world : state && state.world;
+}
 
 // "#rrggbb" -> [r, g, b] in 0..255.
 const rgbOf = (hex) => [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
@@ -147,8 +162,11 @@ function fillGrid(ctx, geo, colorAt) {
 
 function drawMap() {
   const {ctx, w, h} = setupCanvas($("map"));
-  const world = state && state.world, query = state && state.query;
-  if (!world) return placeholder(ctx, w, h, "No map yet: waiting for the robot's world.");
+  const world = shownMap(), query = state && state.query, kind = kindOf(query);
+  $("map").dataset.map = kind === "proxies" ? "training" : "test";
+  $("map-caption").textContent = world ? KIND_TEXT[kind].map : "";
+  if (!world) return placeholder(ctx, w, h, kind === "proxies" ? "Waiting for the training map…"
+    : "No map yet: waiting for the robot's world.");
   const geo = gridGeometry(world.height, world.width, w, h);
   fillGrid(ctx, geo, (r, c) => terrainColor(world, world.classes[r][c]));
   ctx.strokeStyle = withAlpha(INK, 0.18); ctx.lineWidth = 1;
@@ -181,8 +199,9 @@ function drawRisk() {
     const v = risk.values[r][c];
     return v < 0 ? UNKNOWN_COLOR : riskColor(v / 100);
   });
-  const query = state.query;
-  if (query && risk.height === (state.world || {}).height && risk.width === (state.world || {}).width) {
+  const query = state.query;  // the risk map is the test map's: a proxies question's plans are not on it
+  if (query && kindOf(query) === "paths" && risk.height === (state.world || {}).height
+      && risk.width === (state.world || {}).width) {
     drawPaths(ctx, geo, query.options, 0.12);
     drawStart(ctx, geo, query.options[0][0]);
   }
@@ -193,20 +212,21 @@ function drawRisk() {
 function drawLegend() {
   const legend = $("legend");
   legend.replaceChildren();
-  // Only the terrains on the map: no gold entry on a map without gold.
-  const world = state && state.world;
+  // Only the terrains on the map drawn: no gold entry on a map without gold.
+  const world = state && shownMap();
   const present = world ? new Set(world.classes.flat()) : null;
   const names = world ? world.class_names.filter((_, cls) => present.has(cls)) : [];
   for (const name of names) {
     legend.append(el("span", {class: "chip"}, el("span", {class: "swatch", style: {background: TERRAIN_COLORS[name] || UNKNOWN_COLOR}}), name));
   }
-  legend.append(el("span", {class: "chip"}, el("span", {class: "swatch start"}), "Rob's start"));
+  legend.append(el("span", {class: "chip"}, el("span", {class: "swatch start"}),
+    kindOf(state && state.query) === "proxies" ? "training start" : "Rob's start"));
 }
 
 // ------------------------------------------------------------------ text
 
 function terrainAt(r, c) {
-  const world = state && state.world;
+  const world = state && shownMap();
   const cls = world && world.classes[r] ? world.classes[r][c] : undefined;
   return cls === undefined || cls === 255 || cls >= world.class_names.length ? "unknown" : world.class_names[cls];
 }
@@ -216,7 +236,7 @@ const terrainSwatch = (name) => el("span", {class: "swatch", style: {background:
 // Two lines about a path (its T+1 cells): "ends on <terrain>" and "11 cells: 6 dirt, 5 target",
 // each terrain with its map colour.
 function pathSummary(cells) {
-  if (!state || !state.world) return [el("span", {}), el("small", {})];
+  if (!state || !shownMap()) return [el("span", {}), el("small", {})];
   const counts = new Map();
   for (const [r, c] of cells) counts.set(terrainAt(r, c), (counts.get(terrainAt(r, c)) || 0) + 1);
   const [r, c] = cells[cells.length - 1];
@@ -224,6 +244,17 @@ function pathSummary(cells) {
   const parts = el("small", {}, `${cells.length} cells:`);
   for (const [name, n] of counts) parts.append(el("span", {class: "count"}, terrainSwatch(name), ` ${n} ${name}`));
   return [end, parts];
+}
+
+// A proxy's weights, one chip per feature ("dirt +0.10"), in the order of proxy_feature_names.
+const signed = (v) => `${v >= 0 ? "+" : "−"}${Math.abs(v).toFixed(2)}`;
+function proxyWeights(query, k) {
+  const weights = (query.option_proxies || [])[k] || [];
+  const names = query.proxy_feature_names || weights.map((_, i) => `w${i + 1}`);
+  const box = el("span", {class: "weights", "data-option": String(k)}, el("small", {}, "reward: "));
+  weights.forEach((v, i) => box.append(el("span", {class: "weight"},
+    terrainSwatch(names[i]), ` ${names[i]} `, el("span", {class: "num"}, signed(v)))));
+  return box;
 }
 
 function renderOptions() {
@@ -236,7 +267,8 @@ function renderOptions() {
     $("gain").textContent = "";
     return;
   }
-  const pending = state.pending.includes(query.query_id);
+  const pending = state.pending.includes(query.query_id), kind = kindOf(query);
+  box.dataset.kind = kind;
   query.options.forEach((cells, k) => {
     const button = el("button", {
       id: `option-${k}`, class: "option", type: "button", disabled: pending,
@@ -246,7 +278,7 @@ function renderOptions() {
     },
     el("span", {class: "swatch big", style: {background: pathColor(k)}}),
     el("span", {class: "option-text"}, el("strong", {}, `Option ${letter(k)}`),
-      ...pathSummary(cells)));
+      ...(kind === "proxies" ? [proxyWeights(query, k)] : []), ...pathSummary(cells)));
     box.append(button);
   });
   $("gain").textContent = `Expected information from your answer: ${query.information_gain.toFixed(3)} nats` +
@@ -257,8 +289,10 @@ function renderTitle() {
   const query = state && state.query;
   if (query) {
     const steps = query.options[0].length - 1;
-    $("query-title").textContent = `Question #${query.query_id}: which path do you prefer?`;
-    $("query-sub").textContent = `Every path starts at Rob's start (white circle) and takes ${steps} steps; the framed cell with the letter is where it ends.`;
+    $("query-title").textContent = `Question #${query.query_id}: ${KIND_TEXT[kindOf(query)].question}`;
+    $("query-sub").textContent = kindOf(query) === "proxies"
+      ? `Each option is a reward you might have written when you designed Rob's reward on the training map; its line is the path Rob would take there with that reward (${steps} steps from the white circle; the framed cell with the letter is where it ends). Pick the reward you would have written.`
+      : `Every path starts at Rob's start (white circle) and takes ${steps} steps; the framed cell with the letter is where it ends.`;
   } else {
     $("query-title").textContent = state && state.world ? "No question right now" : "Waiting for the robot…";
     $("query-sub").textContent = "The page updates by itself when Rob asks.";
@@ -304,7 +338,7 @@ function renderHistory() {
     const opts = el("td", {});
     rec.options.forEach((_, k) => opts.append(el("span", {class: "tag", style: {background: pathColor(k), color: haloOf(pathColor(k))}}, letter(k))));
     body.append(el("tr", {id: `history-${rec.query_id}`, "data-query-id": String(rec.query_id)},
-      el("td", {}, `#${rec.query_id}`),
+      el("td", {}, `#${rec.query_id}`, el("small", {class: "kind"}, kindOf(rec) === "proxies" ? " rewards" : " paths")),
       opts,
       el("td", {class: "num"}, `${rec.information_gain.toFixed(3)} nats`),
       el("td", {}, el("span", {class: "tag", style: {background: pathColor(rec.chosen), color: haloOf(pathColor(rec.chosen))}}, letter(rec.chosen)), ` Option ${letter(rec.chosen)}`),
