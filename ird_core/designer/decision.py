@@ -39,12 +39,9 @@ from scipy.special import log_softmax
 
 from ird_core.mdp import GridMDP
 from ird_core.mdp.optimal_paths import optimal_paths
-from ird_core.planning.risk_measures import weighted_cvar_batch
+from ird_core.planning.risk_measures import sort_columns, weighted_cvar_sorted
 
-__all__ = ["Screen", "evoi_values", "oracle_values", "mutual_regret", "best_query"]
-
-#: Float64 elements of one block's ``(block, K, cells)`` CVaR tables (32 MB).
-_BLOCK_ELEMENTS: int = 4_000_000
+__all__ = ["Screen", "evoi_values", "evoi_bounds", "best_evoi_pair", "oracle_values", "mutual_regret", "best_query"]
 
 
 class Screen:
@@ -60,8 +57,10 @@ class Screen:
     def __init__(self, mdp: GridMDP, samples: np.ndarray, cell_rewards: np.ndarray, current: np.ndarray) -> None:
         self.mdp, self.samples = mdp, np.asarray(samples, dtype=np.float64)
         self.values = np.asarray(cell_rewards, dtype=np.float64).reshape(len(self.samples), -1)
+        self.columns = sort_columns(self.values)  # once: every re-plan's CVaR reuses the order
         self.alpha = 1.0 / len(self.samples)
         self.current_features = mdp.features[current[:, 0], current[:, 1]].sum(axis=0)
+        self.current_states = current[:, 0] * mdp.width + current[:, 1]  # (T + 1,) flat cells
 
     @classmethod
     def of_plan(cls, mdp: GridMDP, samples: np.ndarray, cell_rewards: np.ndarray) -> "Screen":
@@ -74,13 +73,9 @@ class Screen:
         ``cell_values`` ``(H, W)``, the re-plans' sums of those values ``(M,)`` instead."""
         shape = (self.mdp.height, self.mdp.width)
         table = self.mdp.features if cell_values is None else np.asarray(cell_values, dtype=np.float64)
-        out = []
-        block = max(1, _BLOCK_ELEMENTS // self.values.size)
-        for lo in range(0, len(weights), block):
-            reward = weighted_cvar_batch(self.values, weights[lo: lo + block], self.alpha)
-            paths = optimal_paths(self.mdp, reward.reshape((-1,) + shape))
-            out.append(table[paths[:, :, 0], paths[:, :, 1]].sum(axis=1))
-        return np.concatenate(out)
+        reward = weighted_cvar_sorted(self.columns, np.asarray(weights, dtype=np.float64), self.alpha)
+        paths = optimal_paths(self.mdp, reward.reshape((-1,) + shape))
+        return table[paths[:, :, 0], paths[:, :, 1]].sum(axis=1)
 
 
 def _answer_logs(option_features: np.ndarray, samples: np.ndarray, beta: float) -> np.ndarray:
@@ -100,6 +95,48 @@ def evoi_values(screen: Screen, option_features: np.ndarray, beta: float) -> np.
     replanned = screen.replan(_posterior_weights(log_p).reshape(n * q, -1)).reshape(n, q, -1)
     gain = np.einsum("nqd,kd->nqk", replanned - screen.current_features, screen.samples, optimize=True)
     return np.einsum("nkq,nqk->n", np.exp(log_p), gain, optimize=True) / len(screen.samples)
+
+
+def evoi_bounds(screen: Screen, option_features: np.ndarray, beta: float) -> np.ndarray:
+    """Upper bounds of :func:`evoi_values`, ``(n, q, d) -> (n,)``, from risk-neutral re-plans.
+
+    After answer ``a`` no path beats, in posterior-mean return, the optimal path of the mean
+    per-cell reward ``sum_k omega^a_k (w_k . F - b_k)`` (one DP, no sort), so
+    ``EVOI <= sum_a P(a) (V*_a - V_a(xi_0))``.
+    """
+    n, q, _ = option_features.shape
+    log_p = _answer_logs(option_features, screen.samples, beta)  # (n, K, q)
+    weights = _posterior_weights(log_p).reshape(n * q, -1)
+    mean = weights @ screen.values  # (n q, S)
+    shape = (screen.mdp.height, screen.mdp.width)
+    paths = optimal_paths(screen.mdp, mean.reshape((-1,) + shape))
+    flat = paths[:, :, 0] * screen.mdp.width + paths[:, :, 1]
+    best = np.take_along_axis(mean, flat, axis=1).sum(axis=1)
+    current = mean[:, screen.current_states].sum(axis=1)
+    return np.einsum("nq,nq->n", np.exp(log_p).mean(axis=1), (best - current).reshape(n, q))
+
+
+def best_evoi_pair(screen: Screen, features: np.ndarray, beta: float, *, chunk: int = 64) -> tuple[list[int], float]:
+    """The pair of candidates ``features`` ``(n, d)`` of largest EVOI, exactly as
+    ``best_query(evoi_values ...)`` picks it (ties: the first pair in ``np.triu_indices`` order),
+    by branch and bound: pairs in decreasing order of :func:`evoi_bounds`, ``chunk`` at a time,
+    until no bound can reach the best value found."""
+    first, second = np.triu_indices(len(features), 1)
+    pairs = np.stack([first, second], axis=1)
+    bounds = evoi_bounds(screen, features[pairs], beta)
+    order = np.argsort(-bounds, kind="stable")
+    values = np.full(len(pairs), -np.inf)
+    best = -np.inf
+    for lo in range(0, len(order), chunk):
+        take = order[lo: lo + chunk]
+        # Rounding margin: a bound within 1e-9 of the best may still tie it, so it is evaluated.
+        take = take[bounds[take] >= best - 1e-9 * (1.0 + abs(best))]
+        if not len(take):
+            break
+        values[take] = evoi_values(screen, features[pairs[take]], beta)
+        best = max(best, float(values[take].max()))
+    index = int(np.argmax(values))
+    return [int(first[index]), int(second[index])], float(values[index])
 
 
 def oracle_values(screen: Screen, option_features: np.ndarray, option_returns: np.ndarray, beta: float,
@@ -138,15 +175,18 @@ def mutual_regret(candidate_features: np.ndarray, samples: np.ndarray, sample_ch
     return worst + worst.T
 
 
-def best_query(score: Callable[[np.ndarray], np.ndarray], num_candidates: int, num_options: int
-               ) -> tuple[list[int], float]:
+def best_query(score: Callable[[np.ndarray], np.ndarray], num_candidates: int, num_options: int,
+               pair: "tuple[list[int], float] | None" = None) -> tuple[list[int], float]:
     """The best pair of ``range(num_candidates)`` under ``score`` (index arrays ``(m, s)`` ->
     ``(m,)``), extended greedily to ``num_options``; ties go to the first in ``np.triu_indices``
-    order. Returns the chosen indices and the set's score."""
-    first, second = np.triu_indices(num_candidates, 1)
-    values = score(np.stack([first, second], axis=1))
-    best = int(np.argmax(values))
-    chosen, value = [int(first[best]), int(second[best])], float(values[best])
+    order. ``pair``: the best pair and its score, when already known (:func:`best_evoi_pair`).
+    Returns the chosen indices and the set's score."""
+    if pair is None:
+        first, second = np.triu_indices(num_candidates, 1)
+        values = score(np.stack([first, second], axis=1))
+        best = int(np.argmax(values))
+        pair = [int(first[best]), int(second[best])], float(values[best])
+    chosen, value = pair
     while len(chosen) < num_options:
         rest = np.setdiff1d(np.arange(num_candidates), chosen)
         sets = np.concatenate([np.broadcast_to(chosen, (len(rest), len(chosen))), rest[:, None]], axis=1)

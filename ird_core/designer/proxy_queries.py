@@ -48,7 +48,7 @@ import numpy as np
 
 from ird_core.checks import check_array, check_int, check_real
 from ird_core.designer.candidates import PlanSettings
-from ird_core.designer.decision import Screen, best_query, evoi_values
+from ird_core.designer.decision import Screen, best_evoi_pair, best_query, evoi_values
 from ird_core.designer.queries import (NotEnoughCandidates, _best_pair, _greedy_extend,
                                        _information_gain_from_scores, simulated_answer)
 from ird_core.mdp import GridMDP, cell_rewards, optimal_paths
@@ -303,7 +303,8 @@ def propose_proxy_query(
     elif strategy == QueryStrategy.EVOI:
         assert test_mdp is not None
         screen = Screen.of_plan(test_mdp, w, (plan or PlanSettings()).cell_rewards(test_mdp, w))
-        chosen, _ = best_query(lambda sets: evoi_values(screen, counts[sets], beta), n, num_options)
+        chosen, _ = best_query(lambda sets: evoi_values(screen, counts[sets], beta), n, num_options,
+                               best_evoi_pair(screen, counts, beta))
     else:
         i, j, _ = _best_pair(scores)
         chosen = _greedy_extend(scores, [i, j], num_options)

@@ -355,7 +355,7 @@ def propose_query(query_mdp: GridMDP, samples: np.ndarray, beta: float, num_opti
     elif strategy == QueryStrategy.EVOI:
         screen = decision.Screen(query_mdp, w, (plan or PlanSettings()).cell_rewards(query_mdp, w), cells[0])
         chosen, value = decision.best_query(lambda sets: decision.evoi_values(screen, features[sets], beta),
-                                            n, num_options)
+                                            n, num_options, decision.best_evoi_pair(screen, features, beta))
     else:
         regret = decision.mutual_regret(features, w, choice)
         owned = np.flatnonzero(np.isfinite(regret).any(axis=1))

@@ -43,6 +43,20 @@ def test_weighted_cvar_batch_equals_risk_statistic(alpha):
     np.testing.assert_allclose(weighted_cvar_batch(values, weights, alpha), expected, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("alpha", [1 / 40, 0.01, 0.2, 1.0])
+def test_weighted_cvar_batch_past_the_first_sorted_samples(alpha):
+    """Rows whose tail runs past the first sorted samples (tiny weights on the lowest values) are
+    recomputed in full; rows whose tail ends early are not: both equal risk_statistic."""
+    rng = np.random.default_rng(8)
+    values = rng.normal(size=(40, 11))
+    weights = rng.dirichlet(np.ones(40), size=5)
+    low = np.argsort(values[:, 0])[:30]
+    weights[0, low] = 1e-9
+    weights[0] /= weights[0].sum()
+    expected = np.stack([risk_statistic(values, Risk("cvar", alpha), p) for p in weights])
+    np.testing.assert_allclose(weighted_cvar_batch(values, weights, alpha), expected, rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_screen_replans_equal_the_weighted_cvar_planner(seed):
     mdp, w = _mdp(seed), _samples(seed)
@@ -217,3 +231,18 @@ def test_a_proxy_query_by_evoi_is_the_best_pair_for_robs_plan():
     values = D.evoi_values(screen, counts[pairs], 1.0)
     np.testing.assert_array_equal(query.option_features, counts[pairs[int(np.argmax(values))]])
     assert query.strategy == "evoi"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_evoi_bounds_bound_and_the_search_finds_the_exhaustive_best(seed):
+    mdp, w = _mdp(seed + 20, 4, 5, 3, 6), _samples(seed + 20, 24)
+    plan = C.PlanSettings("initial_state")
+    found = C.query_candidates(mdp, w, plan, seed=seed)
+    screen = D.Screen(mdp, w, plan.cell_rewards(mdp, w), found.cells[0])
+    pairs = np.array(list(itertools.combinations(range(len(found.features)), 2)))
+    for beta in (0.3, 3.0):
+        values = D.evoi_values(screen, found.features[pairs], beta)
+        assert np.all(D.evoi_bounds(screen, found.features[pairs], beta) >= values - 1e-9)
+        chosen, value = D.best_evoi_pair(screen, found.features, beta, chunk=2)
+        index = int(np.argmax(values))
+        assert chosen == [int(pairs[index][0]), int(pairs[index][1])] and value == values[index]
