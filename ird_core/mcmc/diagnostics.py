@@ -7,7 +7,10 @@ Split R-hat (Gelman et al., BDA3, 11.4), its rank-normalised and folded variant 
 
 ``tests/core/test_diagnostics.py`` checks these against ArviZ (``rhat(method="rank")``,
 ``ess(method="bulk")``); ArviZ is a test-time reference only, so the core needs neither pandas
-nor xarray at run time.
+nor xarray at run time. arviz-stats (numpy/scipy only) gives the same R-hat and the same
+run-until decisions but loops over coordinates in Python: 2.5-45x slower per check on windows
+of up to 256 draws (``scripts/bench_diagnostics.py``, docs/dependencies.md); in d = 50 a check
+would cost more than the 16 sampler iterations between checks, so these stay.
 """
 
 from __future__ import annotations

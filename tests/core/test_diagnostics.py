@@ -1,6 +1,7 @@
 """The home-made convergence diagnostics (ird_core.mcmc.diagnostics) against ArviZ, the reference.
 
-ArviZ is a test-only dependency: the core stays numpy/scipy. Known, tested differences:
+ArviZ is a test-only dependency: the core stays numpy/scipy (and does not call arviz-stats, which is
+slower per check: scripts/bench_diagnostics.py, docs/dependencies.md). Known, tested differences:
 
 - R-hat, odd chain length: ArviZ drops the middle draw before ranking, we rank every draw, so
   the normal scores (and R-hat) differ slightly; with an even length they are the same numbers.
