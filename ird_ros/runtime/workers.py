@@ -27,6 +27,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import multiprocessing
+import os
 import signal
 import threading
 from collections import deque
@@ -39,7 +40,7 @@ from ird_ros.launch.process_groups import set_parent_death_signal
 __all__ = ["WorkerPool", "BrokenProcessPool"]
 
 
-def _worker_init(memory_limit: int = 0) -> None:  # pragma: no cover - runs in the worker process
+def _worker_init(memory_limit: int = 0, node_pid: int | None = None) -> None:  # pragma: no cover - worker process
     # Ctrl-C in a terminal signals the whole process group: the node ends its workers itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if memory_limit > 0:
@@ -48,8 +49,10 @@ def _worker_init(memory_limit: int = 0) -> None:  # pragma: no cover - runs in t
         import resource
 
         resource.setrlimit(resource.RLIMIT_AS, (memory_limit, memory_limit))
-    # Die with the node, even if it is SIGKILLed (Linux PR_SET_PDEATHSIG).
-    set_parent_death_signal(signal.SIGTERM)
+    # Die with the node, even if it is SIGKILLed (Linux PR_SET_PDEATHSIG); a node that died
+    # while this worker was still starting (before this line) never signals it, so the worker
+    # then exits at once instead of living on as an orphan.
+    set_parent_death_signal(signal.SIGTERM, node_pid)
 
 
 def _warm(modules: Sequence[str]) -> int:  # pragma: no cover - runs in the worker process
@@ -109,7 +112,7 @@ class WorkerPool:
     def _new_executor(self) -> concurrent.futures.ProcessPoolExecutor:
         return concurrent.futures.ProcessPoolExecutor(
             max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-            initializer=_worker_init, initargs=(self._memory_limit,))
+            initializer=_worker_init, initargs=(self._memory_limit, os.getpid()))
 
     # ------------------------------------------------------------------ submitting
 

@@ -265,3 +265,25 @@ def test_shutdown_cancels_the_queue_and_ends_the_running_job(tmp_path: Any) -> N
         running.result(timeout=60)
     with pytest.raises(RuntimeError, match="shut down"):
         pool.submit_concurrent(abs, -1)
+
+
+def _start_worker(node_pid: int) -> int:
+    """Run a worker's initializer in a fresh spawned process told that its node is ``node_pid``;
+    return the process's exit code."""
+    import multiprocessing
+
+    from ird_ros.runtime.workers import _worker_init
+
+    process = multiprocessing.get_context("spawn").Process(target=_worker_init, args=(0, node_pid))
+    process.start()
+    process.join(60.0)
+    assert process.exitcode is not None, "the worker's initializer did not return"
+    return process.exitcode
+
+
+def test_a_worker_whose_node_is_already_gone_exits_instead_of_living_on() -> None:
+    # The node that started it is this process: the initializer arms the death signal and returns.
+    assert _start_worker(os.getpid()) == 0
+    # A worker whose node died before the initializer ran has been re-parented: its parent is not
+    # the node it was started for, and it exits at once (PR_SET_PDEATHSIG would never fire).
+    assert _start_worker(os.getpid() + 1_000_000) == 1
