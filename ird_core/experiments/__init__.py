@@ -5,8 +5,9 @@ Modules: ``trials`` (one Lavaland trial, a pure function of its ``TrialSpec``), 
 (its aggregation), ``active`` (the designer-in-the-loop trial), ``statistics`` (intervals, paired
 comparisons, the gap closed, shared by both), ``report`` / ``active_report`` (their csv,
 markdown and figures), ``tables`` (how reports write numbers), ``parallel`` (process pool or
-Dask map), ``progress`` (tqdm bars, imported only when drawn), ``cli`` / ``active_cli`` (the
-command lines, ``main(argv) -> int``), ``posterior_terrain`` (the posterior's spread per terrain).
+Dask map), ``progress`` (tqdm bars, imported only when drawn), ``cli`` / ``active_cli`` / ``scale_cli`` (the
+command lines, ``main(argv) -> int``), ``posterior_terrain`` (the posterior's spread per terrain),
+``scale`` (where IRD goes wrong on robot-sized maps).
 """
 
 from __future__ import annotations

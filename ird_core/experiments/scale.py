@@ -1,0 +1,114 @@
+"""Where IRD goes wrong on robot-sized maps: the posterior's value of lava, and where the plan
+steps on it (docs/experiments.md, "Robot-sized maps"). Pure numpy/scipy, no ROS.
+
+One diagnosis (:func:`diagnose`) is one Lavaland trial's posterior and main IRD plan (the
+experiments' own :func:`ird_core.experiments.trials.trial_posterior` and per-step planner, so a
+diagnosis describes exactly the plans the experiments score), read three ways:
+
+- **the posterior's value of lava**, per sample ``k``: ``v_k = w_k . (m_lava - m_dirt)``, where
+  ``m_t`` is the mean test feature vector of the cells of terrain ``t`` (the class mean in the
+  latent conditions, the indicator in the others). Its spread says how uncertain IRD still is
+  about lava after the training evidence; ``share_below`` is the share of samples that value
+  lava below dirt (the samples that make the per-step min avoid it). The true reward values
+  lava 10.1 below dirt;
+- **where the plan touches lava**: the lava steps and the distinct lava cells of the executed
+  path, and whether the plan *parks* there (its last step is on lava: the per-step objective
+  stays on the cell whose min over the samples is highest);
+- **the lava cells' standing**: the best per-step min reward over lava cells against the best
+  over safe cells (``lava_margin = best lava - best safe``; positive means some lava cell is the
+  map's best parking spot for the risk-averse reward).
+
+A diagnosis is a pure function of its spec (seeded like the trials), so a table of them
+reproduces bit for bit.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ird_core import planning, posterior
+from ird_core.experiments.trials import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec, trial_instance, trial_posterior
+from ird_core.worlds import lavaland
+from ird_core.worlds.terrain import Terrain
+
+__all__ = ["ScaleDiagnosis", "terrain_mean_features", "lava_values", "diagnose", "DIAGNOSIS_COLUMNS"]
+
+
+@dataclass(frozen=True)
+class ScaleDiagnosis:
+    """One trial's posterior value of lava and its main IRD plan's contact with lava."""
+
+    condition: str
+    seed: int
+    size: int
+    horizon: int
+    beta: float
+    method: str
+    lava_value_mean: float  # mean over samples of w . (m_lava - m_dirt)
+    lava_value_sd: float  # its standard deviation over samples
+    lava_value_min: float  # its minimum over samples
+    share_below: float  # share of samples with w . (m_lava - m_dirt) < 0
+    proxy_lava_value: float  # the proxy's own w~ . (m_lava - m_dirt), on the proxy's features
+    lava_steps: int  # steps of the main IRD path on lava
+    lava_cells: int  # distinct lava cells on it
+    parked: bool  # its last step is on lava
+    lava_margin: float  # best per-step min over lava cells minus best over safe cells
+    r_hat_max: float
+    infer_seconds: float
+
+
+#: The columns of a diagnosis table (:class:`ScaleDiagnosis`'s fields).
+DIAGNOSIS_COLUMNS: tuple[str, ...] = tuple(ScaleDiagnosis.__dataclass_fields__)
+
+
+def terrain_mean_features(features: np.ndarray, labels: np.ndarray, terrain: int) -> np.ndarray:
+    """Mean feature vector of the cells labelled ``terrain``: ``(H, W, d), (H, W) -> (d,)``.
+
+    Raises ``ValueError`` naming the terrain when the map has no such cell.
+    """
+    mask = np.asarray(labels) == int(terrain)
+    if not mask.any():
+        raise ValueError(f"terrain: no cell of terrain {int(terrain)} on the map")
+    return np.asarray(features, dtype=np.float64)[mask].mean(axis=0)
+
+
+def lava_values(features: np.ndarray, labels: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Each weight's value of lava relative to dirt on this map, ``w . (m_lava - m_dirt)``.
+
+    Args:
+        features: ``(H, W, d)`` test features.
+        labels: ``(H, W)`` terrain labels.
+        weights: ``(K, d)``.
+    Returns:
+        ``(K,)``.
+    """
+    gap = terrain_mean_features(features, labels, Terrain.LAVA) - terrain_mean_features(features, labels, Terrain.DIRT)
+    return np.atleast_2d(np.asarray(weights, dtype=np.float64)) @ gap
+
+
+def diagnose(spec: TrialSpec, method: str) -> ScaleDiagnosis:
+    """The diagnosis of ``spec``'s trial for one Z-approximation (``method``)."""
+    inst = trial_instance(spec)
+    test = lavaland.test_mdp(inst)
+    start = time.perf_counter()
+    post = trial_posterior(spec, inst, method)
+    seconds = time.perf_counter() - start
+    reference = posterior.proxy_feature_expectations(inst, spec.observation_model()) / (inst.train_horizon + 1)
+    plan = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
+    labels = inst.test_labels
+    values = lava_values(inst.test_features, labels, post.samples)
+    proxy_value = float(lava_values(inst.proxy_test_features, labels, inst.proxy_weights)[0])
+    on_lava = [labels[r, c] == Terrain.LAVA for r, c in plan.cells]
+    step_reward = planning.per_step_reward(test, post.samples, MAIN_BASELINE, reference)
+    lava = labels == Terrain.LAVA
+    return ScaleDiagnosis(
+        condition=spec.condition, seed=spec.seed, size=spec.size, horizon=spec.horizon, beta=spec.beta,
+        method=method, lava_value_mean=float(values.mean()), lava_value_sd=float(values.std()),
+        lava_value_min=float(values.min()), share_below=float(np.mean(values < 0.0)),
+        proxy_lava_value=proxy_value, lava_steps=int(sum(on_lava)),
+        lava_cells=len({cell for cell, hit in zip(plan.cells, on_lava) if hit}), parked=bool(on_lava[-1]),
+        lava_margin=float(step_reward[lava].max() - step_reward[~lava].max()),
+        r_hat_max=float(post.r_hat_max), infer_seconds=seconds)
