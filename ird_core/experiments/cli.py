@@ -123,6 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--controls", action=argparse.BooleanOptionalAction, default=None,
                    help="the control planners: prior only, novelty-avoiding, the other Sample-Z reading, "
                         "Sample-Z without its own term")
+    p.add_argument("--novelty-feature", action=argparse.BooleanOptionalAction, default=None,
+                   help="add the hypothesis feature 'novel' (1 on test cells unlike every training cell, 0 in "
+                        "training; ird_core.experiments.novelty_hypothesis) to IRD's posterior and plans")
     p.add_argument("--quick", action="store_true",
                    help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
     parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
@@ -184,7 +187,8 @@ def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
 
 
 #: TrialSpec fields set by an optional flag of the same name (None: the TrialSpec default).
-MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "risk", "risk_level", "frontier", "controls")
+MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "risk", "risk_level", "frontier", "controls",
+                               "novelty_feature")
 
 
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:

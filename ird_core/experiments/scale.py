@@ -47,6 +47,7 @@ class ScaleDiagnosis:
     horizon: int
     beta: float
     method: str
+    novelty_feature: bool  # the hypothesis features include "novel" (experiments.novelty_hypothesis)
     lava_value_mean: float  # mean over samples of w . (m_lava - m_dirt)
     lava_value_sd: float  # its standard deviation over samples
     lava_value_min: float  # its minimum over samples
@@ -106,7 +107,8 @@ def diagnose(spec: TrialSpec, method: str) -> ScaleDiagnosis:
     lava = labels == Terrain.LAVA
     return ScaleDiagnosis(
         condition=spec.condition, seed=spec.seed, size=spec.size, horizon=spec.horizon, beta=spec.beta,
-        method=method, lava_value_mean=float(values.mean()), lava_value_sd=float(values.std()),
+        method=method, novelty_feature=spec.novelty_feature, lava_value_mean=float(values.mean()),
+        lava_value_sd=float(values.std()),
         lava_value_min=float(values.min()), share_below=float(np.mean(values < 0.0)),
         proxy_lava_value=proxy_value, lava_steps=int(sum(on_lava)),
         lava_cells=len({cell for cell, hit in zip(plan.cells, on_lava) if hit}), parked=bool(on_lava[-1]),

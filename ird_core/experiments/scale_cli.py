@@ -50,7 +50,8 @@ def summary_table(rows: Sequence[ScaleDiagnosis]) -> str:
     """The markdown table of the module docstring, groups in first-seen order."""
     groups: dict[tuple, list[ScaleDiagnosis]] = {}
     for row in rows:
-        groups.setdefault((row.condition, row.size, row.horizon, row.beta, row.method), []).append(row)
+        method = row.method + (" + novel" if row.novelty_feature else "")
+        groups.setdefault((row.condition, row.size, row.horizon, row.beta, method), []).append(row)
     lines = ["| condition | map | T | beta | method | trials | lava - dirt: mean (median) | sd over samples "
              "(median) | samples valuing lava below dirt | IRD touches lava | parks on lava | a lava cell is "
              "the best cell | inference s (median) |",
@@ -74,6 +75,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--conditions", nargs="+", choices=CONDITIONS, default=["latent_raw"])
     parser.add_argument("--methods", nargs="+", choices=Z_METHODS, default=["maxent_z"])
     parser.add_argument("--betas", type=float, nargs="+", default=[TrialSpec.beta])
+    parser.add_argument("--novelty-feature", action="store_true",
+                        help="add the hypothesis feature 'novel' (ird_core.experiments.novelty_hypothesis)")
     parser.add_argument("--seeds", type=int, default=6, help="trials per cell: seeds SEED .. SEED + N - 1")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None, help="write the rows as csv here")
@@ -84,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(name, "1")
     jobs = [(TrialSpec(condition=c, seed=args.seed + i, size=size, horizon=horizon, beta=beta, factorial=False,
-                       z_methods=(method,)), method)
+                       z_methods=(method,), novelty_feature=args.novelty_feature), method)
             for c, (size, horizon), beta, method, i in itertools.product(
                 args.conditions, args.sizes, args.betas, args.methods, range(args.seeds))]
     print(f"{len(jobs)} diagnoses, {describe(args.workers, args.scheduler)}", file=sys.stderr)

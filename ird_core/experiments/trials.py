@@ -63,6 +63,7 @@ import numpy as np
 
 from ird_core import mcmc, mdp, planning, posterior
 from ird_core.experiments.controls import control_results, frontier_results
+from ird_core.experiments.novelty_hypothesis import with_novelty_feature
 from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
 from ird_core.planning.risk_measures import check_risk
 from ird_core.vocabulary import PROXY_COUNTS, Baseline, PlanMode, ZMethod
@@ -228,6 +229,7 @@ class TrialSpec:
     risk_level: float = math.nan  # its level (alpha of cvar, lambda of mean_sd)
     frontier: bool = False  # plan every risk level of FRONTIER_RISKS from every posterior
     controls: bool = False  # the control planners and posteriors (ird_core.experiments.controls)
+    novelty_feature: bool = False  # IRD's hypothesis features gain "novel" (experiments.novelty_hypothesis)
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
         4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
         check_every=CHECK_EVERY,
@@ -303,11 +305,14 @@ def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: st
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
-    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``."""
+    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``; with
+    ``novelty_feature``, its hypothesis features gain the *novel* feature."""
     if spec.world:
-        return world_file.load_world(spec.world)
-    return lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
-                                  obs_dim=spec.obs_dim)
+        inst = world_file.load_world(spec.world)
+    else:
+        inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
+                                      obs_dim=spec.obs_dim)
+    return with_novelty_feature(inst) if spec.novelty_feature else inst
 
 
 def run_trial(spec: TrialSpec) -> list[TrialResult]:

@@ -88,8 +88,10 @@ def proxy_observation(
 
 
 def _proxy_mdp(instance: LavalandInstance) -> GridMDP | None:
-    """The training grid on the proxy's features when they are not the hypothesis features."""
-    return None if instance.classifier is None else train_mdp(instance, proxy=True)
+    """The training grid on the proxy's features when they are not the hypothesis features (a
+    classifier's outputs, or hypothesis features the proxy does not have, such as *novel*)."""
+    same = instance.classifier is None and tuple(instance.proxy_feature_names) == tuple(instance.feature_names)
+    return None if same else train_mdp(instance, proxy=True)
 
 
 def proxy_feature_expectations(instance: LavalandInstance,
