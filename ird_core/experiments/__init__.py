@@ -7,7 +7,8 @@ comparisons, the gap closed, shared by both), ``report`` / ``active_report`` (th
 markdown and figures), ``tables`` (how reports write numbers), ``parallel`` (process pool or
 Dask map), ``progress`` (tqdm bars, imported only when drawn), ``cli`` / ``active_cli`` / ``scale_cli`` (the
 command lines, ``main(argv) -> int``), ``posterior_terrain`` (the posterior's spread per terrain),
-``scale`` (where IRD goes wrong on robot-sized maps), ``novelty_hypothesis`` (the *novel* hypothesis
+``scale`` (where IRD goes wrong on robot-sized maps), ``scale_timing`` (what a converged
+posterior and a plan cost at a map size), ``novelty_hypothesis`` (the *novel* hypothesis
 feature, zero in training).
 """
 

@@ -83,6 +83,7 @@ __all__ = [
     "trial_seed",
     "trial_instance",
     "trial_posterior",
+    "posterior_seeds",
     "outcome",
     "make_specs",
     "run_trial",
@@ -286,15 +287,20 @@ def _derived_seed(seed: int, *keys: int) -> int:
     return int(np.random.SeedSequence([int(seed), *keys]).generate_state(1)[0])
 
 
+def posterior_seeds(spec: TrialSpec, method: str) -> tuple[int, int]:
+    """The seeds of ``spec``'s posterior under ``method``: the sampler's, and the proxy
+    observations' (Sample-Z's prior-drawn proxies), both derived from ``spec.seed``."""
+    return _derived_seed(spec.seed, Z_METHODS.index(method) + 1) % (2**31), _derived_seed(spec.seed, 100)
+
+
 def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: str,
                     model: "posterior.ObservationModel | None" = None) -> posterior.Posterior:
     """The joint posterior over the instance's training worlds (one for Lavaland), under the
     spec's observation model or ``model`` (the controls' other readings: same seeds)."""
     model = spec.observation_model() if model is None else model
-    method_index = Z_METHODS.index(method) + 1
-    sampler_seed = _derived_seed(spec.seed, method_index) % (2**31)
+    sampler_seed, evidence_seed = posterior_seeds(spec, method)
     observations = posterior.proxy_observations(
-        inst, spec.num_proxy_samples if method == ZMethod.SAMPLE_Z else None, _derived_seed(spec.seed, 100),
+        inst, spec.num_proxy_samples if method == ZMethod.SAMPLE_Z else None, evidence_seed,
         spec.prior_sigma, observation_model=model)
     settings = spec.sampler(method).for_dim(observations[0].dim)
     with warnings.catch_warnings():

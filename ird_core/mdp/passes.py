@@ -23,6 +23,7 @@ import numpy as np
 
 from ird_core.mdp.grid import MOVES, GridMDP, cell_rewards
 from ird_core.mdp.linear_passes import linear_backward, linear_visitation
+from ird_core.mdp.threads import map_chunks
 
 __all__ = [
     "soft_values",
@@ -136,11 +137,20 @@ def _log_visitation_exact(mdp: GridMDP, rewards: np.ndarray) -> tuple[np.ndarray
 #: batches are split evenly.
 _CHUNK_BYTES = 8_000_000
 
+#: Working set of one exact log-space batch (its soft values, one ``(T + 1) H W`` float64 array
+#: per weight, dominate). The elements the fast path flags in all its chunks are gathered and
+#: recomputed in batches of this size, which bounds their memory and gives the threads
+#: (``IRD_THREADS``) a few large tasks: on a 64x64 map with T = 120 a fast-path chunk holds one
+#: weight, and nearly all of Sample-Z's prior-drawn proxies are flagged.
+_EXACT_CHUNK_BYTES = 64_000_000
 
-def _chunks(mdp: GridMDP, num: int) -> list[slice]:
-    """Even slices of a batch of ``num`` weights, each within ``_CHUNK_BYTES``."""
-    per_weight = 2 * 8 * (mdp.horizon + 1) * (mdp.height + 1) * (mdp.width + 1)
-    count = -(-num * per_weight // _CHUNK_BYTES)
+
+def _chunks(mdp: GridMDP, num: int, budget: int = 0, per_weight: int = 0) -> list[slice]:
+    """Even slices of a batch of ``num`` weights, each within ``budget`` bytes (0: the fast
+    path's ``_CHUNK_BYTES``; ``per_weight``: bytes per weight, 0 for the fast path's)."""
+    budget = budget or _CHUNK_BYTES
+    per_weight = per_weight or 2 * 8 * (mdp.horizon + 1) * (mdp.height + 1) * (mdp.width + 1)
+    count = -(-num * per_weight // budget)
     if count <= 1:
         return [slice(0, num)] if num else []
     bounds = np.linspace(0, num, count + 1).round().astype(int)
@@ -149,19 +159,32 @@ def _chunks(mdp: GridMDP, num: int) -> list[slice]:
 
 def _visitation_and_log_partition(mdp: GridMDP, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Expected visits ``(K, H, W)`` and ``log Z`` ``(K,)``: linear-space passes on cache-sized
-    chunks, with the exact log-space passes for the elements the fast path flags."""
+    chunks, then the exact log-space passes for all the elements the fast path flags, in batches
+    of at most ``_EXACT_CHUNK_BYTES`` (every flagged element's result is the same however the
+    batch is split: the exact passes are elementwise per weight). Chunks and batches run on
+    ``IRD_THREADS`` threads (``ird_core.mdp.threads``), with the same results."""
     rewards = cell_rewards(mdp, weights)
     visits = np.empty(rewards.shape)
     log_z = np.empty(len(rewards))
-    for part in _chunks(mdp, len(rewards)):
+    redo = np.zeros(len(rewards), dtype=bool)
+
+    def fast_path(part: slice) -> None:  # writes only its own rows: safe on threads
         back = linear_backward(mdp, rewards[part])
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             visits[part], unsure = linear_visitation(mdp, back)
         log_z[part] = back.log_z
-        redo = np.flatnonzero(back.suspect | unsure | ~np.isfinite(back.log_z)) + part.start
-        if len(redo):
-            log_visits, log_z[redo] = _log_visitation_exact(mdp, rewards[redo])
-            visits[redo] = np.exp(log_visits)
+        redo[part] = back.suspect | unsure | ~np.isfinite(back.log_z)
+
+    map_chunks(fast_path, _chunks(mdp, len(rewards)))
+    flagged = np.flatnonzero(redo)
+    exact_bytes = 8 * (mdp.horizon + 1) * mdp.height * mdp.width
+
+    def exact(part: slice) -> None:
+        batch = flagged[part]
+        log_visits, log_z[batch] = _log_visitation_exact(mdp, rewards[batch])
+        visits[batch] = np.exp(log_visits)
+
+    map_chunks(exact, _chunks(mdp, len(flagged), _EXACT_CHUNK_BYTES, exact_bytes))
     return visits, log_z
 
 
@@ -176,9 +199,12 @@ def log_partition(mdp: GridMDP, weights: np.ndarray) -> np.ndarray:
     rewards = cell_rewards(mdp, weights)
     log_z = np.empty(len(rewards))
     redo = np.zeros(len(rewards), dtype=bool)
-    for part in _chunks(mdp, len(rewards)):
+
+    def fast_path(part: slice) -> None:
         back = linear_backward(mdp, rewards[part], keep_sums=False)
         log_z[part], redo[part] = back.log_z, back.suspect | ~np.isfinite(back.log_z)
+
+    map_chunks(fast_path, _chunks(mdp, len(rewards)))
     if redo.any():
         row, col = mdp.start
         log_z[redo] = _soft_values_from_rewards(mdp, rewards[redo])[0][:, row, col]

@@ -134,6 +134,44 @@ def test_mixed_batch_falls_back_per_element_and_matches_one_at_a_time() -> None:
     assert np.allclose(batched_phi, single, rtol=1e-12, atol=1e-12)
 
 
+def test_flagged_elements_of_many_chunks_are_recomputed_together_bit_for_bit(monkeypatch) -> None:
+    # The exact fallback runs on the flagged elements of every fast-path chunk at once, in
+    # batches bounded by _EXACT_CHUNK_BYTES: however they are split, each flagged element's
+    # numbers are those of its exact passes alone, and the others are the fast path's.
+    rng = np.random.default_rng(11)
+    mdp = random_mdp(rng, 6, 7, d=3, horizon=20)
+    # Chunks of two weights (a NaN of a flagged element may leak to its chunk neighbour, so the
+    # huge weights are paired): chunks 2 and 4 are flagged, 1, 3 and 5 are not.
+    scales = np.array([1.0, 0.3, 400.0, 900.0, 1.0, 0.5, 1500.0, 700.0, 1.0, 2.0])
+    weights = rng.normal(size=(len(scales), 3)) * scales[:, None]
+    rewards = M.cell_rewards(mdp, weights)
+    flagged = [2, 3, 6, 7]
+    alone = [passes._log_visitation_exact(mdp, rewards[[i]]) for i in flagged]
+    per_weight = 2 * 8 * (mdp.horizon + 1) * (mdp.height + 1) * (mdp.width + 1)
+    exact_per_weight = 8 * (mdp.horizon + 1) * mdp.height * mdp.width
+    calls: list[int] = []
+    original = passes._log_visitation_exact
+
+    def counting(mdp_: M.GridMDP, rewards_: np.ndarray):
+        calls.append(len(rewards_))
+        return original(mdp_, rewards_)
+
+    monkeypatch.setattr(passes, "_log_visitation_exact", counting)
+    monkeypatch.setattr(passes, "_CHUNK_BYTES", 2 * per_weight)
+    results = []
+    for exact_budget, expected_calls in ((10**9, [4]), (exact_per_weight, [1, 1, 1, 1]), (3 * exact_per_weight, [2, 2])):
+        monkeypatch.setattr(passes, "_EXACT_CHUNK_BYTES", exact_budget)
+        calls.clear()
+        visits, log_z = passes._visitation_and_log_partition(mdp, weights)
+        assert calls == expected_calls
+        for i, (log_visits, z) in zip(flagged, alone):
+            assert log_z[i] == z[0] and np.array_equal(visits[i], np.exp(log_visits[0]))
+        results.append((visits, log_z))
+    for visits, log_z in results[1:]:
+        assert np.array_equal(visits, results[0][0]) and np.array_equal(log_z, results[0][1])
+    assert np.allclose(results[0][0].sum(axis=(1, 2)), mdp.horizon + 1)
+
+
 def test_reused_work_arrays_carry_nothing_between_calls() -> None:
     # The passes reuse per-thread work arrays: a batch whose flagged elements leave NaN and inf
     # behind, then ordinary batches of the same shape, must give what fresh arrays give.
