@@ -1,10 +1,11 @@
 """A request sent to a service of the graph and not answered yet, and what happens when its
 server drops out of the graph meanwhile (a node stopped with SIGSTOP, frozen, or starved).
 
-Why this exists: DDS drops a pending request when the client's participant stops hearing from
-the server's (its lease, 20 s in Fast DDS, expires): the match between the client's request
+Why this exists: DDS can drop a pending request when the client's participant stops hearing
+from the server's (its lease, 20 s in Fast DDS, expires): the match between the client's request
 writer and the server's request reader ends, and when the server is back its volatile reader
-ignores what was sent before the new match. Without a remedy such a call waits until its
+ignores what was sent before the new match. (Not always: a stopped process may find the request
+in its socket buffer when continued and, its own lease timers not having run, answer it.) Without a remedy such a call waits until its
 timeout (``tests/ros/test_stalls.py`` reproduces it: request sent to a node stopped for longer
 than the lease, the node continued, no answer ever). The root is in DDS (volatile, reliable
 service endpoints lose a request when the match is lost), so the remedy is here:

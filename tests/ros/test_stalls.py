@@ -6,7 +6,8 @@ and the node is continued, the node never answers that request (``resend=False``
 ``LOST_GRACE_TEST`` s for it after the return and then ends FAILED saying so), while the same
 request sent with ``resend=True`` is answered. The launcher reports the stall (process state T)
 and the recovery (a parameter request answered again) as lines and typed events. The second test
-does the same with the real inference node and ``/ird/infer`` (resent by default).
+does the same with the real inference node and ``/ird/infer`` (resent by default): the call ends
+answered, whether by the resent copy or by the original.
 
 Nothing sleeps: the node stays stopped until the client has seen it drop out (a condition waited
 for with a timeout), then it is continued.
@@ -90,5 +91,10 @@ def test_infer_sent_to_a_stopped_inference_node_is_answered(ros_domain: DomainLe
         finally:
             os.kill(proc.pid, signal.SIGCONT)
         result = ird.wait(pending, timeout=120.0)
+        # Answered, never left hanging. By the resent copy, or by the original: the stopped process
+        # may find the original in its socket buffer when continued and, its own lease timers not
+        # having run, still answer it; if that answer reaches the client before its next poll sees
+        # the server back, no resend happens (seen once under a CPU hog). The same request gives
+        # the same answer either way; the first test shows a lost request is resent.
         assert result.status is CallStatus.DONE, result
-        assert result.unwrap().samples.shape[0] == 8 and pending.resends >= 1
+        assert result.unwrap().samples.shape[0] == 8 and pending.resends <= 1
