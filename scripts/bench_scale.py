@@ -32,23 +32,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from ird_core.experiments.progress import progress_bar  # noqa: E402
+from ird_core.experiments.scale_cli import parse_size  # noqa: E402
 from ird_core.experiments.scale_timing import TIMING_COLUMNS, ScaleTiming, time_trial  # noqa: E402
 from ird_core.experiments.trials import Z_METHODS, TrialSpec  # noqa: E402
 from ird_core.worlds.lavaland import CONDITIONS  # noqa: E402
 
 #: The issue's goals: seconds for a converged posterior and for a plan at 64x64, T = 120.
 POSTERIOR_GOAL_S, PLAN_GOAL_S = 10.0, 1.0
-
-
-def size_horizon(text: str) -> tuple[int, int]:
-    """``"64:120"`` -> ``(64, 120)``; argparse's type, so a bad value names ``--sizes``."""
-    try:
-        size, horizon = (int(part) for part in text.split(":"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--sizes: expected SIZE:HORIZON such as 64:120, got {text!r}") from None
-    if size < 4 or horizon < 1:
-        raise argparse.ArgumentTypeError(f"--sizes: size must be >= 4 and horizon >= 1, got {text!r}")
-    return size, horizon
 
 
 def format_rows(rows: "list[ScaleTiming]") -> str:
@@ -101,7 +91,7 @@ def goal_lines(rows: "list[ScaleTiming]") -> list[str]:
 
 def main(argv: "list[str] | None" = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sizes", nargs="+", type=size_horizon, default=[(15, 30), (32, 60), (64, 120)],
+    parser.add_argument("--sizes", nargs="+", type=parse_size, default=[(15, 30), (32, 60), (64, 120)],
                         metavar="SIZE:HORIZON", help="map sizes and horizons; the first is the reference")
     parser.add_argument("--methods", nargs="+", choices=Z_METHODS, default=["maxent_z"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
