@@ -8,7 +8,10 @@ PR_SET_PDEATHSIG ends a child when its supervising process is SIGKILLed; the out
 keeps every line. Liveness (``ird_ros.launch.liveness``, with a fake ping client and clock): a
 stopped process is stalled at the next check, a running one whose pings go unanswered for
 ``ping_timeout`` too, and either recovers only once it runs and answers a ping sent after the
-stall; ``Supervisor.note`` records only for the current ready process. Nothing sleeps: waits are
+stall; ``describe`` says what the last check saw; ``Supervisor.note`` records only for the
+current ready process; a wait for an event ends at once when its ``abort`` raises (the launcher:
+when the readiness probe failed), and a timed-out wait for a stalled node carries what its last
+liveness check saw. Nothing sleeps: waits are
 on supervisor events, output lines and pidfds.
 """
 
@@ -277,6 +280,21 @@ def test_pdeathsig_ends_the_child_when_the_supervisor_is_killed() -> None:
             os.killpg(child, signal.SIGKILL)
 
 
+def test_child_ended_sees_a_zombie_without_reaping_it() -> None:
+    from ird_ros.launch.process_groups import child_ended
+
+    proc = subprocess.Popen(py("import signal; signal.pause()"))
+    try:
+        assert not child_ended(proc.pid)
+        proc.kill()
+        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)  # blocks until it is a zombie
+        assert child_ended(proc.pid) and proc.returncode is None  # not reaped by the check
+    finally:
+        proc.kill()
+        assert proc.wait() == -signal.SIGKILL
+    assert child_ended(proc.pid)
+
+
 def test_bad_arguments_name_the_field() -> None:
     with pytest.raises(ValueError, match="respawn_delay"):
         ProcessSpec("x", py("pass"), respawn=True, respawn_delay=-1.0)
@@ -413,6 +431,10 @@ def test_unanswered_pings_make_a_running_node_stalled() -> None:
         clock.now += 0.5
     [stalled] = changes
     assert stalled.stalled and "no answer to /world/get_parameters for 5.0 s" in stalled.reason
+    assert checker.describe("world") == (
+        "process 42 state S; /world/get_parameters discovered; ping outstanding since 0.5 s before; "
+        "last answer (or readiness) 5.5 s before; stalled 0.5 s before (at the last check)")  # checked at 5.5 s
+    assert checker.describe("elsewhere") == "not watched (not ready)"
     ping = node.clients["/world/get_parameters"]
     assert ping.removed == [ping.sent[0]] and len(ping.sent) == 2  # the lost ping was replaced
     ping.answer_all()
@@ -434,6 +456,7 @@ def test_a_node_without_parameter_service_is_judged_by_its_process_state() -> No
         clock.now += 1.0
     states["now"] = "t"
     assert [c.stalled for c in checker.check(infos)] == [True]
+    assert "state t; /quiet/get_parameters never discovered; ping none outstanding" in checker.describe("quiet")
     states["now"] = "R"
     assert [c.stalled for c in checker.check(infos)] == [False]
     with pytest.raises(ValueError, match="ping_timeout"):
@@ -455,3 +478,42 @@ def test_liveness_events_are_recorded_for_the_current_ready_process_only(make) -
     assert stalled.kind is EventKind.STALLED and stalled.detail == "process stopped"
     assert recovered.kind is EventKind.RECOVERED and recovered.detail == "responding again after 2.0 s"
     assert sup.wait_for_event("recovered", "n").index == recovered.index and seen[-2:] == [stalled, recovered]
+
+
+class StubMonitor:
+    """The launcher's view of a readiness monitor: its ``error`` and the ``stall_note`` of a node."""
+
+    def __init__(self, error: BaseException | None = None, note: str = "") -> None:
+        self.error, self.note = error, note
+
+    def stall_note(self, _name: str) -> str:
+        return self.note
+
+
+def test_a_wait_ends_when_abort_raises_and_a_stalled_wait_says_what_was_seen(make) -> None:
+    from ird_ros.launch import GraphLauncher, LaunchError
+
+    sup = make(ProcessSpec("n", py("import signal; print('up', flush=True); signal.pause()")))
+    sup.wait_for_output("n", "up")
+
+    def boom() -> None:
+        raise LookupError("the source is gone")
+
+    done = threading.Event()
+    with pytest.raises(LookupError, match="the source is gone"):
+        threading.Timer(30.0, done.set).start()  # a hang would still end the test, failing it below
+        sup.wait_for_event("recovered", "n", timeout=60.0, abort=boom)
+    assert not done.is_set()
+    launcher = GraphLauncher.__new__(GraphLauncher)  # only ``_sup`` and ``_monitor`` are used by the wait
+    launcher._sup, launcher._monitor = sup, StubMonitor(error=RuntimeError("rclpy context shut down"))
+    with pytest.raises(LaunchError, match="readiness probe failed: RuntimeError.'rclpy context shut down'"):
+        launcher.wait_for_event("recovered", "n", timeout=60.0)
+    assert not done.is_set()
+    launcher._monitor = StubMonitor(note="process 7 state S; /n/get_parameters not discovered (was before)")
+    with pytest.raises(TimeoutError, match=r"no 'recovered' event for n within 0.2 s; .*; n is stalled: "
+                                           r"process 7 state S; /n/get_parameters not discovered \(was before\)"):
+        launcher.wait_for_event("recovered", "n", timeout=0.2)
+    launcher._monitor = StubMonitor()
+    with pytest.raises(TimeoutError) as plain:
+        launcher.wait_for_event("recovered", "n", timeout=0.2)
+    assert "stalled" not in str(plain.value)

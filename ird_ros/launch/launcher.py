@@ -354,10 +354,26 @@ class GraphLauncher:
         return "\n".join(lines)
 
     def wait_for_event(self, kind: EventKind | str, node: str, *, after: int = 0, timeout: float = 30.0) -> Event:
-        """The first event of ``kind`` for ``node`` with index >= ``after`` (waits for it)."""
+        """The first event of ``kind`` for ``node`` with index >= ``after`` (waits for it).
+
+        Raises ``LaunchError`` at once if the readiness probe (the source of ``ready``, ``stalled``
+        and ``recovered``) failed; the ``TimeoutError`` of a node that is stalled says what its
+        last liveness check saw."""
         if self._sup is None:
             raise LaunchError("start() first")
-        return self._sup.wait_for_event(kind, node, after=after, timeout=timeout)
+        monitor = self._monitor
+
+        def probe_failed() -> None:
+            if monitor is not None and monitor.error is not None:
+                raise LaunchError(f"readiness probe failed: {monitor.error!r}") from monitor.error
+
+        try:
+            return self._sup.wait_for_event(kind, node, after=after, timeout=timeout, abort=probe_failed)
+        except TimeoutError as exc:
+            note = monitor.stall_note(node) if monitor is not None else ""
+            if not note:
+                raise
+            raise TimeoutError(f"{exc}; {node} is stalled: {note}") from None
 
     def all_exited(self) -> bool:
         """True when no node runs and none will be respawned."""

@@ -65,6 +65,9 @@ class _Watch:
     sent_at: float | None = None
     future: Any = None
     served: bool = False  # its parameter service was discovered at least once
+    visible: bool = False  # its parameter service was discovered at the last check
+    state: str | None = None  # its process state at the last check
+    checked_at: float = 0.0
     stalled_at: float | None = None
 
 
@@ -130,12 +133,14 @@ class LivenessChecker:
         elif watch.future is not None and now - (watch.sent_at or now) >= self.ping_timeout:
             client.remove_pending_request(watch.future)  # lost, or never to be answered: ask again
             watch.future = None
-        if watch.future is None and client.service_is_ready():
+        watch.visible = client.service_is_ready()
+        if watch.future is None and watch.visible:
             watch.served = True
             if watch.sent_at is None or now - watch.sent_at >= self.period:
                 watch.future = client.call_async(self._srv_type.Request())
                 watch.sent_at = now
-        state = self._state(watch.pid)
+        state = watch.state = self._state(watch.pid)
+        watch.checked_at = now
         stopped = state in STOPPED_STATES
         silent = watch.served and now - watch.answered_at >= self.ping_timeout
         if watch.stalled_at is None:
@@ -156,6 +161,23 @@ class LivenessChecker:
         if watch.future is not None and not watch.future.done():
             self._client(name).remove_pending_request(watch.future)
         del self._watches[name]
+
+    def describe(self, name: str) -> str:
+        """What the last check of ``name`` saw, for a report of a stall that does not end:
+        process state, whether the parameter service is discovered, the pings' times."""
+        watch = self._watches.get(name)
+        if watch is None:
+            return "not watched (not ready)"
+        now = watch.checked_at
+
+        def ago(t: float | None) -> str:
+            return "never" if t is None else f"{now - t:.1f} s before"
+
+        service = f"/{name}/get_parameters"
+        seen = "discovered" if watch.visible else ("not discovered (was before)" if watch.served else "never discovered")
+        pending = f"outstanding since {ago(watch.sent_at)}" if watch.future is not None else "none outstanding"
+        return (f"process {watch.pid} state {watch.state or 'gone'}; {service} {seen}; ping {pending}; "
+                f"last answer (or readiness) {ago(watch.answered_at)}; stalled {ago(watch.stalled_at)} (at the last check)")
 
     def stalled(self) -> dict[str, float]:
         """Names of the children stalled now, with the monotonic time each was seen stalled."""

@@ -4,7 +4,8 @@
 tests' node processes): SIGINT/SIGTERM at their default dispositions (a parent started with
 ``&`` has SIGINT ignored, which children would inherit) and ``PR_SET_PDEATHSIG=SIGTERM``, so
 the child is told to stop even when its parent is killed with SIGKILL. ``group_alive`` says
-whether a process group still has a live (non-zombie) member. No ROS in here.
+whether a process group still has a live (non-zombie) member; ``child_ended`` whether a child
+has ended, without reaping it. No ROS in here.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import os
 import signal
 from typing import Any, Callable
 
-__all__ = ["set_parent_death_signal", "child_preexec", "group_alive"]
+__all__ = ["set_parent_death_signal", "child_preexec", "group_alive", "child_ended"]
 
 try:
     _PRCTL: Any = ctypes.CDLL(None, use_errno=True).prctl  # resolved here, not after fork
@@ -76,3 +77,15 @@ def group_alive(pgid: int) -> bool:
         if int(fields[2]) == pgid and fields[0] != b"Z":
             return True
     return False
+
+
+def child_ended(pid: int) -> bool:
+    """True once this process's child ``pid`` has ended: a zombie, or already reaped.
+
+    Unlike ``Popen.poll``, which answers None while another thread blocks in ``Popen.wait``
+    (it cannot take the Popen's wait lock), this asks the kernel without reaping (``WNOWAIT``).
+    """
+    try:
+        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:  # reaped already
+        return True

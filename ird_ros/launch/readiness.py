@@ -250,6 +250,7 @@ class ReadinessMonitor:
         self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
         self._lag: list[str] = []
         self._stalled: dict[str, float] = {}
+        self._stall_notes: dict[str, str] = {}  # stalled name -> what the last liveness check saw
         self._error: BaseException | None = None
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._run, name="readiness", daemon=True)
@@ -320,8 +321,14 @@ class ReadinessMonitor:
             else:
                 self._sup.note(change.name, change.pid, ProcessRecovered, stalled_for=change.stalled_for)
         stalled = self._liveness.stalled()
+        notes = {name: self._liveness.describe(name) for name in stalled}
         with self._lock:
-            self._stalled = stalled
+            self._stalled, self._stall_notes = stalled, notes
+
+    def stall_note(self, name: str) -> str:
+        """What the last liveness check saw of ``name`` if it is stalled now, else ``""``."""
+        with self._lock:
+            return self._stall_notes.get(name, "")
 
     def stalled(self) -> dict[str, float]:
         """Children seen stalled and not recovered (name -> monotonic time seen), as of the last check."""

@@ -45,7 +45,7 @@ from typing import IO, Any, Callable, Iterable, Mapping, Sequence, TypeVar
 from ird_ros.launch.events import (ChildInfo, ChildState, EventKind, OutputChoice, OutputMode, ProcessEvent,
                                    ProcessExited, ProcessGaveUp, ProcessReady, ProcessRespawning, ProcessSpec,
                                    ProcessStarted, SignalSent, parse_output_mode)
-from ird_ros.launch.process_groups import child_preexec, group_alive
+from ird_ros.launch.process_groups import child_ended, child_preexec, group_alive
 
 __all__ = ["Supervisor"]
 
@@ -159,13 +159,14 @@ class Supervisor:
             return list(self._events)
 
     def wait_for_event(self, kind: EventKind | str, name: str, *, after: int = 0,
-                       timeout: float = 30.0) -> ProcessEvent:
-        """The first event of ``kind`` for ``name`` with index >= ``after`` (waits for it)."""
+                       timeout: float = 30.0, abort: Callable[[], None] = lambda: None) -> ProcessEvent:
+        """The first event of ``kind`` for ``name`` with index >= ``after`` (waits for it); what
+        ``abort()`` raises (called at least every 0.5 s, lock held) ends the wait."""
         kind = EventKind(kind)
         return self._wait_for(
             lambda: next((e for e in self._events[after:] if e.kind == kind and e.name == name), None), timeout,
             lambda: f"no {kind.value!r} event for {name} within {timeout:g} s; events: "
-                    f"{[(e.kind.value, e.name) for e in self._events]}")
+                    f"{[(e.kind.value, e.name) for e in self._events]}", abort)
 
     def wait_for_output(self, name: str, text: str, timeout: float = 30.0) -> str:
         """The first kept line of ``name`` containing ``text`` (waits for it)."""
@@ -174,12 +175,14 @@ class Supervisor:
             lambda: next((line for line in tail if text in line), None), timeout,
             lambda: f"{name} did not print {text!r} within {timeout:g} s:\n" + "\n".join(tail))
 
-    def _wait_for(self, find: Callable[[], _T | None], timeout: float, failure: Callable[[], str]) -> _T:
+    def _wait_for(self, find: Callable[[], _T | None], timeout: float, failure: Callable[[], str],
+                  abort: Callable[[], None] = lambda: None) -> _T:
         """``find()``'s first non-None answer (called with the lock held; waits for changes);
-        ``TimeoutError(failure())`` after ``timeout`` s."""
+        ``TimeoutError(failure())`` after ``timeout`` s; ``abort()`` before every wait."""
         deadline = time.monotonic() + timeout
         with self._cond:
             while (found := find()) is None:
+                abort()
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     raise TimeoutError(failure())
@@ -421,19 +424,17 @@ class Supervisor:
         with self._cond:  # up to 20 ms, woken early by an exit event
             self._cond.wait(0.02)
 
-    def shutdown(self, timeout: float = 2.0) -> dict[str, int | None]:
-        """After ``stop_processes``: let exit reports through, end the thread; return exit codes.
-
-        Children that are not ``exited`` are ``stopped`` afterwards.
-        """
+    def shutdown(self, timeout: float = PUMP_DRAIN_TIMEOUT + 3.0) -> dict[str, int | None]:
+        """After ``stop_processes``: let the exit report of every ended child through (up to
+        ``timeout`` s), end the thread; return exit codes. Children not ``exited`` are ``stopped``."""
         with self._cond:
             self._stopping = True
         if self._thread is not None:
             deadline = time.monotonic() + timeout
             with self._cond:
                 while time.monotonic() < deadline and any(
-                    c.proc is not None and c.state not in (ChildState.STOPPED, ChildState.EXITED)
-                    and c.proc.poll() is not None for c in self._children.values()
+                    c.proc is not None and c.state in (ChildState.STARTING, ChildState.READY)
+                    and child_ended(c.proc.pid) for c in self._children.values()
                 ):
                     self._cond.wait(0.05)
             self._commands.put((_Command.QUIT, None))

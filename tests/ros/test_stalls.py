@@ -19,6 +19,8 @@ import os
 import signal
 from typing import Any
 
+import pytest
+
 from _inference_node import small_inference_node
 from _standin_node import STANDIN_SPECS
 
@@ -57,6 +59,9 @@ def test_stopped_node_is_reported_and_its_requests_are_resent_or_failed() -> Non
                 assert any(f"node world (pid {pid}) stalled: process stopped" in line for line in lines), lines
                 row = next(r for r in graph.status_table().splitlines() if r.startswith("world "))
                 assert " stalled " in row
+                # a wait that times out while the node is stalled says what the launcher sees
+                with pytest.raises(TimeoutError, match=f"world is stalled: process {pid} state T; /world/get_param"):
+                    graph.wait_for_event("recovered", "world", after=mark, timeout=0.5)
                 kept = ird.call_async(names.SRV_GENERATE, GenerateWorld.Request(seed=1), resend=True)
                 lost = ird.call_async(names.SRV_GENERATE, GenerateWorld.Request(seed=2), resend=False,
                                       lost_grace=LOST_GRACE_TEST)
