@@ -251,6 +251,7 @@ class ReadinessMonitor:
         self._lag: list[str] = []
         self._stalled: dict[str, float] = {}
         self._stall_notes: dict[str, str] = {}  # stalled name -> what the last liveness check saw
+        self._checked_at = time.monotonic()
         self._error: BaseException | None = None
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._run, name="readiness", daemon=True)
@@ -323,12 +324,14 @@ class ReadinessMonitor:
         stalled = self._liveness.stalled()
         notes = {name: self._liveness.describe(name) for name in stalled}
         with self._lock:
-            self._stalled, self._stall_notes = stalled, notes
+            self._stalled, self._stall_notes, self._checked_at = stalled, notes, time.monotonic()
 
     def stall_note(self, name: str) -> str:
-        """What the last liveness check saw of ``name`` if it is stalled now, else ``""``."""
+        """What the last liveness check saw of ``name`` if it is stalled now, and how long ago
+        that check was (a probe thread that stopped checking shows here); else ``""``."""
         with self._lock:
-            return self._stall_notes.get(name, "")
+            note = self._stall_notes.get(name, "")
+            return f"{note}; last check {time.monotonic() - self._checked_at:.1f} s ago" if note else ""
 
     def stalled(self) -> dict[str, float]:
         """Children seen stalled and not recovered (name -> monotonic time seen), as of the last check."""
