@@ -433,7 +433,8 @@ def test_unanswered_pings_make_a_running_node_stalled() -> None:
     assert stalled.stalled and "no answer to /world/get_parameters for 5.0 s" in stalled.reason
     assert checker.describe("world") == (
         "process 42 state S; /world/get_parameters discovered; ping outstanding since 0.5 s before; "
-        "last answer (or readiness) 5.5 s before; stalled 0.5 s before (at the last check)")  # checked at 5.5 s
+        "last answer (or readiness) 5.5 s before; stalled 0.5 s before; pinging participant renewed 0 times "
+        "(at the last check)")  # checked at 5.5 s
     assert checker.describe("elsewhere") == "not watched (not ready)"
     ping = node.clients["/world/get_parameters"]
     assert ping.removed == [ping.sent[0]] and len(ping.sent) == 2  # the lost ping was replaced
@@ -463,6 +464,53 @@ def test_a_node_without_parameter_service_is_judged_by_its_process_state() -> No
         LivenessChecker(node, period=1.0, ping_timeout=1.0, srv_type=FakeSrv)
     with pytest.raises(ValueError, match="period"):
         LivenessChecker(node, period=0.0, srv_type=FakeSrv)
+
+
+def test_a_node_lost_to_discovery_after_it_runs_again_gets_a_new_pinging_participant() -> None:
+    """Fast DDS may never show a continued node to a participant that expired it alone: after
+    ``ping_timeout`` s of running without its service, the pinger is renewed (at most once per
+    ``ping_timeout``) and the node recovers through the new one; a healthy node is not stalled by it."""
+    nodes = [FakeNode()]
+
+    def renew() -> FakeNode:
+        nodes.append(FakeNode())
+        return nodes[-1]
+
+    clock, states = Clock(), {"world": "S", "rob": "S"}
+    checker = LivenessChecker(nodes[0], renew=renew, period=1.0, ping_timeout=5.0, clock=clock,
+                              state=lambda pid: states["world" if pid == 1 else "rob"], srv_type=FakeSrv)
+    infos = {**ready("world", 1), **ready("rob", 2)}
+    answering = ["rob"]  # rob always answers
+
+    def step(seconds: float = 0.5) -> list:
+        changes = []
+        for _ in range(int(seconds / 0.5)):
+            clock.now += 0.5
+            changes += checker.check(infos)
+            for node in nodes:
+                for name in answering:
+                    node.create_client(FakeSrv, f"/{name}/get_parameters").answer_all()
+        return changes
+
+    assert checker.check(infos) == []
+    states["world"] = "T"
+    [stalled] = step()
+    assert stalled.stalled and stalled.name == "world"
+    nodes[0].clients["/world/get_parameters"].ready = False  # the pinger expired it during the stop
+    assert step(10.0) == []
+    states["world"] = "S"  # continued, but never shown to the old pinger again
+    assert step(5.0) == [] and len(nodes) == 1  # seen running at the first of these checks: 4.5 s
+    assert step(0.5) == [] and len(nodes) == 2 and checker.renewals == 1
+    assert "pinging participant renewed 1 times" in checker.describe("world")
+    nodes[1].clients.setdefault("/world/get_parameters", FakeClient()).ready = False  # not seen yet
+    assert step(4.5) == [] and len(nodes) == 2  # at most one renewal per ping_timeout
+    assert step(0.5) == [] and len(nodes) == 3
+    assert step(0.5) == []  # the third one sees it and pings
+    nodes[2].clients["/world/get_parameters"].answer_all()
+    [recovered] = step()
+    assert not recovered.stalled and recovered.name == "world" and checker.stalled() == {}
+    answering.append("world")
+    assert step(20.0) == [] and len(nodes) == 3  # rob was never stalled, nothing renewed again
 
 
 def test_liveness_events_are_recorded_for_the_current_ready_process_only(make) -> None:

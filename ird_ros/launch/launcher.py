@@ -44,6 +44,8 @@ node whose process is stopped (SIGSTOP, a debugger) or that answers no parameter
 ``stalled`` event, and when it responds again as ``... responding again after X s`` with a
 ``recovered`` event; ``status_table`` shows ``stalled`` meanwhile. DDS drops requests sent to a
 node that stays stopped for its lease (20 s); ``ird_ros.client.IrdClient`` resends or fails them.
+The pings come from a participant of their own, replaced by a new one when a continued node's
+service stays undiscovered for 10 s (a Fast DDS re-discovery gap, see the liveness module).
 
 Death and respawn. A child that exits while the graph runs is reported (exit code or
 signal). Nodes in the plan's respawn set are started again after ``respawn_delay`` seconds

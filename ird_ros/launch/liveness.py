@@ -17,6 +17,17 @@ service is discovered (a request sent while the server is gone is lost, so an un
 replaced, never waited on forever). A node whose parameter service was never seen is judged by
 its process state alone. Each transition is returned once; the two alternate per process,
 stalled first. Nothing here sleeps; the caller's spin paces the checks.
+
+Renewal. A node stopped for longer than the DDS participant lease (20 s) is dropped by the
+pinging participant; when it runs again, Fast DDS may never show its endpoints to that
+participant again: if the node's side did not also expire the pinger (its lease check raced with
+the traffic buffered while it was stopped), it still counts the pinger's endpoint discovery as
+acknowledged and never resends it (eProsima/Fast-DDS#155, #457: re-discovery after a lease
+expired on one side only; seen here under load in 1 of ~10 runs of ``tests/ros/test_stalls.py``,
+65 s and more without the service). So when a stalled node's process has run again for
+``ping_timeout`` s and its parameter service is still not discovered, ``renew`` (given by the
+caller) replaces the pinging participant with a new one, which every node discovers afresh; at
+most once per ``ping_timeout`` s.
 """
 
 from __future__ import annotations
@@ -69,20 +80,23 @@ class _Watch:
     state: str | None = None  # its process state at the last check
     checked_at: float = 0.0
     stalled_at: float | None = None
+    resumed_at: float | None = None  # first check that saw it running again while stalled
 
 
 class LivenessChecker:
     """Stall and recovery detection for ready children (see the module docstring).
 
     Args:
-        node: an rclpy node (the probe's) that creates the ping clients; spun by the caller.
+        node: an rclpy node that creates the ping clients; spun by the caller.
+        renew: replaces the pinging participant and returns its new node (None: never renewed).
         period: seconds between pings of one node.
         ping_timeout: seconds without an answer after which a running node is stalled.
         clock: monotonic seconds; state: ``process_state``; srv_type: the ping's service type
             (default ``rcl_interfaces/srv/GetParameters``); tests pass stand-ins.
     """
 
-    def __init__(self, node: Any, *, period: float = PING_PERIOD, ping_timeout: float = PING_TIMEOUT,
+    def __init__(self, node: Any, *, renew: Callable[[], Any] | None = None, period: float = PING_PERIOD,
+                 ping_timeout: float = PING_TIMEOUT,
                  clock: Callable[[], float] = time.monotonic,
                  state: Callable[[int], str | None] = process_state, srv_type: Any = None) -> None:
         if not period > 0.0:
@@ -90,6 +104,8 @@ class LivenessChecker:
         if not ping_timeout > period:
             raise ValueError(f"ping_timeout must be > period ({period:g} s), got {ping_timeout!r}")
         self._node = node
+        self._renew = renew
+        self.renewals = 0
         self.period = float(period)
         self.ping_timeout = float(ping_timeout)
         self._clock = clock
@@ -122,7 +138,27 @@ class LivenessChecker:
             change = self._check_one(name, watch, now)
             if change is not None:
                 changes.append(change)
+        if self._renew is not None and any(self._lost_to_discovery(w, now) for w in self._watches.values()):
+            self._renew_participant(now)
         return changes
+
+    def _lost_to_discovery(self, watch: _Watch, now: float) -> bool:
+        return (watch.resumed_at is not None and now - watch.resumed_at >= self.ping_timeout
+                and watch.served and not watch.visible)
+
+    def _renew_participant(self, now: float) -> None:
+        """A new pinging participant: pings start afresh; running nodes get ``ping_timeout`` s to be
+        discovered by it before their silence counts."""
+        assert self._renew is not None
+        self._clients.clear()  # they belong to the old node
+        self._node = self._renew()
+        self.renewals += 1
+        for watch in self._watches.values():
+            watch.future = watch.sent_at = None
+            if watch.stalled_at is None:
+                watch.answered_at = now
+            elif watch.resumed_at is not None:
+                watch.resumed_at = now
 
     def _check_one(self, name: str, watch: _Watch, now: float) -> Transition | None:
         client = self._client(name)
@@ -152,9 +188,14 @@ class LivenessChecker:
                       f"no answer to /{name}/get_parameters for {now - watch.answered_at:.1f} s "
                       "(executor blocked, process starved, or out of DDS discovery)")
             return Transition(name, watch.pid, True, reason=reason)
-        if stopped or state is None or (watch.served and watch.answered_at < watch.stalled_at):
+        if stopped or state is None:
+            watch.resumed_at = None
             return None
-        stalled_for, watch.stalled_at = now - watch.stalled_at, None
+        if watch.resumed_at is None:
+            watch.resumed_at = now
+        if watch.served and watch.answered_at < watch.stalled_at:
+            return None
+        stalled_for, watch.stalled_at, watch.resumed_at = now - watch.stalled_at, None, None
         return Transition(name, watch.pid, False, stalled_for=stalled_for)
 
     def _drop(self, name: str, watch: _Watch) -> None:
@@ -177,7 +218,8 @@ class LivenessChecker:
         seen = "discovered" if watch.visible else ("not discovered (was before)" if watch.served else "never discovered")
         pending = f"outstanding since {ago(watch.sent_at)}" if watch.future is not None else "none outstanding"
         return (f"process {watch.pid} state {watch.state or 'gone'}; {service} {seen}; ping {pending}; "
-                f"last answer (or readiness) {ago(watch.answered_at)}; stalled {ago(watch.stalled_at)} (at the last check)")
+                f"last answer (or readiness) {ago(watch.answered_at)}; stalled {ago(watch.stalled_at)}; "
+                f"pinging participant renewed {self.renewals} times (at the last check)")
 
     def stalled(self) -> dict[str, float]:
         """Names of the children stalled now, with the monotonic time each was seen stalled."""

@@ -24,6 +24,8 @@ it checks every ``starting`` child, calls ``Supervisor.mark_ready`` once nothing
 keeps the recorder's lag up to date after the recorder was ready, and watches every ``ready``
 child for stalls (``ird_ros.launch.liveness``: process stopped, or no answer to a parameter
 request), which it reports to the supervisor as ``ProcessStalled`` / ``ProcessRecovered`` events.
+The pings go from a second node, ``launcher_ping``, in a participant of its own
+(``PingParticipant``) that liveness may replace when DDS stops showing it a node.
 """
 
 from __future__ import annotations
@@ -42,9 +44,10 @@ from ird_ros.launch.events import ChildInfo, ChildState, ProcessRecovered, Proce
 from ird_ros.launch.liveness import PING_PERIOD, PING_TIMEOUT, LivenessChecker
 from ird_ros.launch.supervisor import Supervisor
 
-__all__ = ["GraphProbe", "ReadinessMonitor", "PROBE_NODE"]
+__all__ = ["GraphProbe", "PingParticipant", "ReadinessMonitor", "PROBE_NODE", "PING_NODE"]
 
 PROBE_NODE = "launcher"
+PING_NODE = "launcher_ping"
 
 
 @contextlib.contextmanager
@@ -72,19 +75,7 @@ class GraphProbe:
     """
 
     def __init__(self, domain_id: int, env: Mapping[str, str], recorder_status: bool = False) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-
-        self._ctx = Context()
-        keys = {k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR") if k in env}
-        with _temp_env(keys):
-            rclpy.init(context=self._ctx, domain_id=int(domain_id), signal_handler_options=SignalHandlerOptions.NO)
-            self._node = rclpy.create_node(PROBE_NODE, context=self._ctx, start_parameter_services=False,
-                                           enable_rosout=False)
-        self._executor = SingleThreadedExecutor(context=self._ctx)
-        self._executor.add_node(self._node)
+        self._ctx, self._node, self._executor = _open_participant(PROBE_NODE, domain_id, env)
         self._subs: dict[str, Any] = {}
         self._received: dict[str, float] = {}  # topic -> monotonic time of the last message
         self._latched: dict[str, bool] = {}  # topic -> every publisher offers transient local
@@ -107,7 +98,7 @@ class GraphProbe:
 
     @property
     def node(self) -> Any:
-        """The probe's rclpy node (spun by ``spin_once``; used by the liveness pings)."""
+        """The probe's rclpy node (spun by ``spin_once``)."""
         return self._node
 
     def spin_once(self, timeout: float) -> None:
@@ -203,12 +194,57 @@ class GraphProbe:
 
     def close(self) -> None:
         """Shut the executor, node and context down (errors ignored: used while stopping)."""
-        with contextlib.suppress(Exception):
-            self._executor.shutdown(timeout_sec=1.0)
-        with contextlib.suppress(Exception):
-            self._node.destroy_node()
-        with contextlib.suppress(Exception):
-            self._ctx.try_shutdown()
+        _close_participant(self._ctx, self._node, self._executor)
+
+
+def _open_participant(name: str, domain_id: int, env: Mapping[str, str]) -> tuple[Any, Any, Any]:
+    """A node ``name`` in an rclpy context (a DDS participant) of its own, and its executor."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    ctx = Context()
+    keys = {k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR") if k in env}
+    with _temp_env(keys):
+        rclpy.init(context=ctx, domain_id=int(domain_id), signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node(name, context=ctx, start_parameter_services=False, enable_rosout=False)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    return ctx, node, executor
+
+
+def _close_participant(ctx: Any, node: Any, executor: Any) -> None:
+    with contextlib.suppress(Exception):
+        executor.shutdown(timeout_sec=1.0)
+    with contextlib.suppress(Exception):
+        node.destroy_node()
+    with contextlib.suppress(Exception):
+        ctx.try_shutdown()
+
+
+class PingParticipant:
+    """The liveness pings' node (``launcher_ping``) in a participant of its own, so that ``renew``
+    can replace it with a new participant (``ird_ros.launch.liveness``: renewal) without touching
+    the readiness probe's subscriptions and history. Not thread-safe: one thread uses it."""
+
+    def __init__(self, domain_id: int, env: Mapping[str, str]) -> None:
+        self._domain_id, self._env = domain_id, dict(env)
+        self._ctx, self.node, self._executor = _open_participant(PING_NODE, domain_id, env)
+
+    def spin(self, callbacks: int) -> None:
+        """Handle up to ``callbacks`` ready events (ping answers) without waiting."""
+        for _ in range(callbacks):
+            self._executor.spin_once(timeout_sec=0.0)
+
+    def renew(self) -> Any:
+        """Close this participant, open a new one; return its node."""
+        self.close()
+        self._ctx, self.node, self._executor = _open_participant(PING_NODE, self._domain_id, self._env)
+        return self.node
+
+    def close(self) -> None:
+        _close_participant(self._ctx, self.node, self._executor)
 
 
 class ReadinessMonitor:
@@ -245,7 +281,9 @@ class ReadinessMonitor:
         self._recorded = list(recorded)
         self._on_change = on_change
         self._probe = GraphProbe(domain_id, env, recorder_status=recorder is not None)
-        self._liveness = LivenessChecker(self._probe.node, period=ping_period, ping_timeout=ping_timeout)
+        self._pinger = PingParticipant(domain_id, env)
+        self._liveness = LivenessChecker(self._pinger.node, renew=self._pinger.renew, period=ping_period,
+                                         ping_timeout=ping_timeout)
         self._lock = threading.Lock()
         self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
         self._lag: list[str] = []
@@ -281,6 +319,7 @@ class ReadinessMonitor:
             while not self._closing.is_set():
                 self._probe.spin_once(0.05)
                 infos = self._sup.infos()
+                self._pinger.spin(len(infos))
                 self._check([i for i in infos.values() if i.state is ChildState.STARTING])
                 if not self._sup.stopping:
                     self._report_liveness(infos)
@@ -344,3 +383,4 @@ class ReadinessMonitor:
         if self._thread.is_alive():
             self._thread.join(2.0)
         self._probe.close()
+        self._pinger.close()
