@@ -104,6 +104,11 @@ class PendingCall(Generic[T]):
         """Whether the server dropped out of the graph at least once while the request was pending."""
         return self.drops > 0
 
+    @property
+    def server_absent(self) -> bool:
+        """Whether the server dropped out and has not been seen back (as of the last poll)."""
+        return self._down_since is not None
+
     def poll(self) -> None:
         """Follow the server's presence; resend or give up as the module docstring says."""
         if self._lost is not None or self._answered() is not None:
@@ -140,8 +145,14 @@ class PendingCall(Generic[T]):
         """A sentence for a timeout message: whether (and how often) the server dropped out."""
         if not self.drops:
             return ""
-        return (f"\n{self.service}'s server dropped out of the graph {self.drops} time(s) while the request was "
+        note = (f"\n{self.service}'s server dropped out of the graph {self.drops} time(s) while the request was "
                 f"pending (node stopped, frozen or starved): DDS drops a request then; see ird_ros.client.pending")
+        if self.server_absent:
+            note += (f"\nThis client has not seen the server back for {self._clock() - self._down_since:.1f} s. If "
+                     "the node runs again (the launcher says 'responding again'), this client's DDS participant may "
+                     "have lost it for good: Fast DDS does not show a node again to a participant that expired it "
+                     "alone (docs/limits.md, Stalled nodes); a new IrdClient discovers it")
+        return note
 
     def _forget(self) -> None:
         """Stop waiting for answers to the copies sent (frees rclpy's pending-request entries)."""

@@ -243,6 +243,21 @@ def test_a_request_whose_server_dropped_out_is_resent_and_the_first_answer_wins(
     assert pending.result().message == "stopped" and fired == [1]
 
 
+def test_a_timeout_note_says_whether_the_server_was_seen_back() -> None:
+    pending, client, now, _ = _pending(resend=True)
+    assert pending.drop_note() == ""
+    client.ready = False
+    now[0] = 21.0
+    pending.poll()
+    now[0] = 81.0
+    note = pending.drop_note()
+    assert "dropped out of the graph 1 time(s)" in note and "not seen the server back for 60.0 s" in note
+    assert "a new IrdClient discovers it" in note
+    client.ready = True
+    pending.poll()
+    assert "dropped out of the graph 1 time(s)" in pending.drop_note() and "not seen" not in pending.drop_note()
+
+
 def test_a_request_that_is_not_resent_fails_after_the_grace_unless_answered() -> None:
     pending, client, now, fired = _pending(resend=False)
     client.ready = False
