@@ -103,8 +103,11 @@ def test_a_goal_infers_plans_drives_and_is_judged_on_the_ground_truth(ird: Any, 
     assert result.status is NavigationStatus.SUCCEEDED, result.message
     stages = {f.stage for f in feedback}
     assert {"inferring", "planning", "driving"} <= stages, stages
+    # Progress only grows. The last feedback (1.0) may be lost: it travels apart from the result,
+    # and rclpy drops a goal's feedback once its result is taken (ActionClient's
+    # _remove_pending_result_request); the drive's end is checked on the result and Rob's status.
     driving = [f for f in feedback if f.stage == "driving" and f.pose_cell is not None]
-    assert driving and driving[-1].progress == pytest.approx(1.0)
+    assert driving and all(a.progress <= b.progress for a, b in zip(driving, driving[1:]))
     assert all(0.0 <= f.progress <= 1.0 for f in feedback)
     summaries = [f.posterior_summary for f in feedback if f.posterior_summary]
     assert summaries and summaries[-1].startswith("maxent_z, 40 samples, R-hat")
