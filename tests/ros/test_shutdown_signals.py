@@ -53,12 +53,16 @@ class SelfSignalling(GuardedNode):
             print("factory went on after the signal", flush=True)
         self.create_service(Trigger, "{SERVICE}", self.on_trigger)
 
+    calls = 0
+
     def on_trigger(self, request, response):
-        if WHEN == "callback":
+        self.calls += 1
+        signalled = WHEN == "callback" and self.calls == 2
+        if signalled:
             signal.raise_signal(SIG)
             signal.raise_signal(SIG)  # a second one changes nothing
         response.success = True
-        response.message = "answered after the signal"
+        response.message = "answered after the signal" if signalled else "answered"
         print(response.message, flush=True)
         return response
 
@@ -98,6 +102,12 @@ def test_a_signal_inside_a_callback_lets_it_answer_then_exits_0(ros_domain: Doma
     proc = _self_signalling(ros_domain, sig, "callback", ready_text="self_signalling ready", ready_timeout=60.0)
     with proc:
         client = ros_node.create_client(Trigger, SERVICE)
+        # A first answer proves the node has matched this client's response reader. A node that
+        # answers before that match loses the answer: rmw_fastrtps waits only the writer's
+        # max_blocking_time (100 ms) for the reader, then drops it ("client will not receive
+        # response"), and this node exits right after. That is discovery, not this property.
+        first = call_service(ros_node, client, Trigger.Request(), timeout=60.0, processes=[proc])
+        assert first.success and first.message == "answered", proc.describe()
         # (not processes=[proc]: the node may exit before the answer is taken here; that is correct)
         response = call_service(ros_node, client, Trigger.Request(), timeout=60.0)
         assert response.success and response.message == "answered after the signal", proc.describe()
