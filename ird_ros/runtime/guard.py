@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+import time
 import traceback
 from typing import Any, Callable
 
@@ -70,10 +71,17 @@ def _log_error(logger: Any, what: str, exc: BaseException) -> None:
         logger.error(f"{what}: {type(exc).__name__}: {exc}\n{''.join(traceback.format_exception(exc))}")
 
 
-def guard_service(callback: Callable, logger: Any, name: str) -> Callable:
-    """``callback(request, response)`` whose exceptions become a ``success: false`` answer."""
+def guard_service(callback: Callable, logger: Any, name: str,
+                  on_answer: "Callable[[], None] | None" = None) -> Callable:
+    """``callback(request, response)`` whose exceptions become a ``success: false`` answer;
+    ``on_answer()`` runs once the answer (either kind) is ready to be sent."""
     if is_guarded(callback):
         return callback
+
+    def answered(result: Any) -> Any:
+        if on_answer is not None:
+            on_answer()
+        return result
 
     def failed(response: Any, exc: BaseException) -> Any:
         fresh = type(response)()
@@ -96,21 +104,21 @@ def guard_service(callback: Callable, logger: Any, name: str) -> Callable:
     if inspect.iscoroutinefunction(callback):
         async def guarded_async(request: Any, response: Any) -> Any:
             try:
-                return checked(response, await callback(request, response))
+                return answered(checked(response, await callback(request, response)))
             except BaseException as exc:  # noqa: BLE001 - any failure is an answer (see the module doc)
                 if _passes(exc):
                     raise
-                return failed(response, exc)
+                return answered(failed(response, exc))
 
         return _mark(guarded_async, callback)
 
     def guarded(request: Any, response: Any) -> Any:
         try:
-            return checked(response, callback(request, response))
+            return answered(checked(response, callback(request, response)))
         except BaseException as exc:  # noqa: BLE001 - any failure is an answer (see the module doc)
             if _passes(exc):
                 raise
-            return failed(response, exc)
+            return answered(failed(response, exc))
 
     return _mark(guarded, callback)
 
@@ -154,17 +162,30 @@ def guard_callback(callback: Callable, logger: Any, name: str, on_error: Any = N
 
 
 class GuardedNode(Node):
-    """An rclpy ``Node`` whose services, subscriptions and timers are guarded (module doc)."""
+    """An rclpy ``Node`` whose services, subscriptions and timers are guarded (module doc).
+
+    ``last_answer`` is the ``time.monotonic()`` at which a service created with
+    ``create_service`` last had its answer ready (``None`` before the first): ``run_node`` keeps
+    the node's participant alive for a moment after it (``ANSWER_LINGER``). rclpy's own
+    services (parameters, type descriptions) do not count.
+    """
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
+        self.last_answer: float | None = None
+        self._own_services = False  # rclpy's __init__ creates its parameter services through create_service
         super().__init__(node_name, **kwargs)
+        self._own_services = True
         for service in self.services:  # created by rclpy itself, not through create_service
             if not is_guarded(service.callback):
                 service.callback = guard_service(service.callback, self.get_logger(), service.srv_name)
 
     def create_service(self, srv_type: Any, srv_name: str, callback: Callable, **kwargs: Any) -> Any:
-        return super().create_service(srv_type, srv_name, guard_service(callback, self.get_logger(), srv_name),
-                                      **kwargs)
+        on_answer = self._answered if self._own_services else None
+        guarded = guard_service(callback, self.get_logger(), srv_name, on_answer=on_answer)
+        return super().create_service(srv_type, srv_name, guarded, **kwargs)
+
+    def _answered(self) -> None:
+        self.last_answer = time.monotonic()
 
     def create_subscription(self, msg_type: Any, topic: str, callback: Callable, qos_profile: Any,
                             **kwargs: Any) -> Any:

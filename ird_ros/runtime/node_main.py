@@ -19,6 +19,9 @@ Life cycle and its invariants:
   down externally. A Python signal handler runs on the main thread between two bytecodes: in a
   running callback it only records; while ``spin_once`` waits (in C) it runs when the wait
   returns, so the stop is acted on within 0.1 s of an idle node's signal.
+- A node that answered a request of its own services within the last ``ANSWER_LINGER`` (1 s)
+  waits, without serving, until that second has passed: its answer may still be on its way
+  (:func:`linger_after_answer`).
 - Clean-up runs with the executor idle (no callback executing, nothing waiting in a wait set):
   ``executor.shutdown()``, then ``node.destroy_node()`` (which ends the node's worker
   processes) only if the shutdown reported that no callback was outstanding, then
@@ -46,11 +49,13 @@ import faulthandler
 import os
 import signal
 import sys
+import time
 from typing import Any, Callable, Sequence
 
 from ird_ros.runtime.workers import BrokenProcessPool, WorkerPool
 
-__all__ = ["StartupError", "run_node", "declare", "WorkerPool", "BrokenProcessPool"]
+__all__ = ["StartupError", "run_node", "declare", "ANSWER_LINGER", "linger_after_answer", "WorkerPool",
+           "BrokenProcessPool"]
 
 
 class StartupError(Exception):
@@ -153,12 +158,39 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
             node.get_logger().info(f"{node.get_name()} ready")
             while not stop.requested and executor.context.ok():
                 executor.spin_once(timeout_sec=0.1)
+            linger_after_answer(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         stop.interrupting = False
         _clean_up(node, executor)
     return 0
+
+
+#: Seconds a stopping node keeps its DDS participant after its last answer (see
+#: :func:`linger_after_answer`).
+ANSWER_LINGER = 1.0
+
+
+def linger_after_answer(node: Any, linger: float = ANSWER_LINGER) -> float:
+    """Wait, without serving, until ``linger`` seconds after ``node.last_answer``; return the wait.
+
+    rmw_fastrtps writes a service's answer without waiting for its acknowledgement, and rclpy
+    offers no way to wait for one. A node that is destroyed right after answering removes its
+    participant, and a client that learns of the removal before it has processed the answer
+    drops the answer (a reader keeps data only from writers it knows). Keeping the participant
+    for ``linger`` seconds lets a loaded client take the answer first.
+    Nodes without ``last_answer`` (not a ``GuardedNode``), or whose last answer is older than
+    ``linger``, do not wait.
+    """
+    last = getattr(node, "last_answer", None)
+    if last is None:
+        return 0.0
+    remaining = last + linger - time.monotonic()
+    if remaining <= 0:
+        return 0.0
+    time.sleep(remaining)
+    return remaining
 
 
 def _clean_up(node: Any, executor: Any) -> None:
