@@ -102,8 +102,8 @@ def test_a_signal_inside_a_callback_lets_it_answer_then_exits_0(ros_domain: Doma
     proc = _self_signalling(ros_domain, sig, "callback", ready_text="self_signalling ready", ready_timeout=60.0)
     with proc:
         client = ros_node.create_client(Trigger, SERVICE)
-        # A first answer proves the node has matched this client's response reader (a node that
-        # answers before that match drops the answer after 100 ms: discovery, not this property).
+        # A first answer proves the node has matched this client's response reader (before that
+        # match a server waits for it, at most 5 s: tests/ros/test_service_answer_wait.py).
         first = call_service(ros_node, client, Trigger.Request(), timeout=60.0, processes=[proc])
         assert first.success and first.message == "answered", proc.describe()
         # Not processes=[proc]: the node exits right after answering, maybe before the answer is
