@@ -91,6 +91,10 @@ def stamp_str(stamp: Any) -> str:
     return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
 
 
+def stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 10**9 + int(stamp.nanosec)
+
+
 def plan(probe: Probe, graph: list[NodeProcess], **fields: Any) -> PlanPath.Response:
     req = PlanPath.Request()
     for key, value in fields.items():
@@ -233,14 +237,22 @@ def test_bad_risks_are_refused_naming_the_field_and_the_planner_keeps_serving(pr
 def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) -> None:
     proxy, stamp = generation(probe, graph, "side_effects", SEED + 1)
     inst = lavaland.make_instance("side_effects", SEED + 1, size=(H, W), horizon=T, obs_dim=OBS)
-    # A posterior in the hypothesis space, published the way the inference node does (latched).
+    gen = stamp_str(stamp)
     samples = np.random.default_rng(0).normal(size=(6, 4))
+    request = dict(start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
+                   mode="per_step", baseline="training_features")
+    # Before the posterior: the planner holds this generation's test map, proxy and training maps
+    # (explicit weights, defaulted map and reference), so the replan below plans on them.
+    plan_when(probe, graph, lambda m: m.count(gen) == 4 and f"map={names.TOPIC_TEST_FEATURES}@{gen}" in m,
+              **request, weights=samples.reshape(-1).tolist(), label="before_the_posterior")
+
+    # A posterior in the hypothesis space, published the way the inference node does (latched).
     post = conv.PosteriorData(samples=samples, feature_names=inst.feature_names, proxy_weights=inst.proxy_weights,
                               method="maxent_z", beta=1.0, prior_sigma=1.0, acceptance_rate=0.5, r_hat_max=1.0,
                               ess_min=10.0, num_chains=2, seed=0, converged=True)
     msg = conv.posterior_to_msg(post, feature_names=inst.feature_names, proxy_weights=inst.proxy_weights,
                                 stamp=probe.node.get_clock().now().to_msg())
-    n_plans = len(probe.plans)
+    posted = stamp_ns(msg.header.stamp)
     wait_for_subscribers(probe.node, probe.posterior_pub, processes=graph)
     probe.posterior_pub.publish(msg)
 
@@ -259,10 +271,24 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     f_ref = posterior.proxy_feature_expectations(rounded) / (T + 1)
     mdp = GridMDP(f32(inst.test_features), inst.test_start, T)
     expected = planning.plan_path(mdp, samples, "per_step", "training_features", f_ref)
-    gen = stamp_str(stamp)
-    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_str(msg.header.stamp) in m,
-                         start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
-                         mode="per_step", baseline="training_features")
+
+    # replan_on_posterior: the planner planned on its own when the posterior arrived. Until the
+    # request below, nothing else can publish a plan stamped after the posterior: the replan is
+    # awaited first, because /plan keeps only the latest plan and a replan published in the same
+    # instant as a response's plan may replace it before the probe takes it.
+    def replans() -> list[PlanInfo]:
+        return [i for i in probe.infos if stamp_ns(i.header.stamp) > posted]
+
+    spin_until(probe.node, lambda: bool(replans()), timeout=20.0, what="the replan", processes=graph)
+    replan = replans()[0]
+    assert (replan.label, replan.mode, replan.baseline) == ("ird_per_step_training_features", "per_step",
+                                                            "training_features")
+    assert list(zip(replan.rows, replan.cols)) == list(expected.cells)
+    assert math.isclose(replan.objective, expected.objective, rel_tol=1e-9, abs_tol=1e-9)
+    spin_until(probe.node, lambda: any(p.header.stamp == replan.header.stamp for p in probe.plans), timeout=20.0,
+               what="/plan of the replan", processes=graph)
+
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_str(msg.header.stamp) in m, **request)
     assert f"map={names.TOPIC_TEST_FEATURES}@{gen}" in response.message
     assert list(zip(response.rows, response.cols)) == list(expected.cells)
     assert math.isclose(response.objective, expected.objective, rel_tol=1e-9, abs_tol=1e-9)
@@ -272,12 +298,6 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     bad = plan(probe, graph, map=conv.feature_grid_to_msg(np.zeros((5, 6, 3)), ["a", "b", "c"]), start_row=1,
                start_col=1, horizon=4, mode="per_step", baseline="none")
     assert not bad.success and bad.message.startswith("map.layers:"), bad.message
-
-    # replan_on_posterior: the planner planned on its own when the posterior arrived.
-    spin_until(probe.node, lambda: any(i.label == "ird_per_step_training_features"
-                                       and list(zip(i.rows, i.cols)) == list(expected.cells)
-                                       for i in probe.infos), timeout=20.0, what="the replan", processes=graph)
-    assert len(probe.plans) > n_plans
 
 
 def test_literal_default_uses_the_classifier_features(probe: Probe, graph: list[NodeProcess]) -> None:
