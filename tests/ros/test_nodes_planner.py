@@ -23,6 +23,7 @@ from ird_ros import conversions as conv
 from ird_ros.client import CallStatus, IrdClient
 from ird_ros.graph import names
 from ird_ros.graph.domains import DomainLease
+from ird_ros.stamps import stamp_ns, stamp_text
 from ird_ros.testing import NodeProcess, spawn_node_process
 from ird_ros.testing import running_nodes as running
 from ird_ros.waits import spin_until, wait_for_subscribers
@@ -85,14 +86,6 @@ def probe(ros_ctx: Any, graph: list[NodeProcess]) -> Iterator[Probe]:
     p = Probe(ros_ctx, graph)
     yield p
     p.ird.close()
-
-
-def stamp_str(stamp: Any) -> str:
-    return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
-
-
-def stamp_ns(stamp: Any) -> int:
-    return int(stamp.sec) * 10**9 + int(stamp.nanosec)
 
 
 def plan(probe: Probe, graph: list[NodeProcess], **fields: Any) -> PlanPath.Response:
@@ -237,7 +230,7 @@ def test_bad_risks_are_refused_naming_the_field_and_the_planner_keeps_serving(pr
 def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) -> None:
     proxy, stamp = generation(probe, graph, "side_effects", SEED + 1)
     inst = lavaland.make_instance("side_effects", SEED + 1, size=(H, W), horizon=T, obs_dim=OBS)
-    gen = stamp_str(stamp)
+    gen = stamp_text(stamp)
     samples = np.random.default_rng(0).normal(size=(6, 4))
     request = dict(start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
                    mode="per_step", baseline="training_features")
@@ -288,7 +281,7 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     spin_until(probe.node, lambda: any(p.header.stamp == replan.header.stamp for p in probe.plans), timeout=20.0,
                what="/plan of the replan", processes=graph)
 
-    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_str(msg.header.stamp) in m, **request)
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_text(msg.header.stamp) in m, **request)
     assert f"map={names.TOPIC_TEST_FEATURES}@{gen}" in response.message
     assert list(zip(response.rows, response.cols)) == list(expected.cells)
     assert math.isclose(response.objective, expected.objective, rel_tol=1e-9, abs_tol=1e-9)
@@ -305,7 +298,7 @@ def test_literal_default_uses_the_classifier_features(probe: Probe, graph: list[
     inst = lavaland.make_instance("latent_classifier", SEED, size=(H, W), horizon=T, obs_dim=OBS)
     perceived = conv.feature_grid_from_msg(next(m for m in probe.terrain_features if m.header.stamp == stamp))
     assert perceived.layers == inst.proxy_feature_names
-    gen = stamp_str(stamp)
+    gen = stamp_text(stamp)
     response = plan_when(probe, graph, lambda m: m.count(gen) == 2,
                          start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
                          mode="literal", baseline="none")
