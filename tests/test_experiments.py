@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ird_core import experiments as ex
-from ird_core.experiments import cli, trials
+from ird_core.experiments import cli, report, trials
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -407,3 +407,70 @@ def test_ros_entry_point_is_the_core_command_line_plus_via_ros(tmp_path, capsys)
     world = str(ROOT / "worlds" / "figure1.yaml")
     assert app.main(["--via-ros", "--world", world, "--out", str(tmp_path)]) == 2
     assert "--world: not supported with --via-ros" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(600)
+def test_chunks_merge_into_the_report_of_one_run(tmp_path, capsys):
+    """Runs over other conditions and seeds, merged in any order, give one run's report (to the
+    csv's 6 significant digits), its trials in that run's order; chunks that clash are refused."""
+    common = ["--workers", "1", "--no-factorial", *TINY_ARGS]
+    single = tmp_path / "single"
+    assert cli.main(["--trials", "2", "--out", str(single), "--conditions", "side_effects", "reward_hacking",
+                     *common]) == 0
+    chunks = {name: tmp_path / name for name in ("hacking", "side0", "side1")}
+    assert cli.main(["--trials", "2", "--out", str(chunks["hacking"]), "--conditions", "reward_hacking",
+                     *common]) == 0
+    for seed in (0, 1):
+        assert cli.main(["--trials", "1", "--seed", str(seed), "--out", str(chunks[f"side{seed}"]),
+                         "--conditions", "side_effects", *common]) == 0
+    merged = tmp_path / "merged"
+    order = [chunks["side1"], chunks["hacking"], chunks["side0"]]
+    from ird_ros.apps import experiments as app  # scripts/run_experiments.py's program
+
+    assert app.main(["--report-only", "--out", str(merged), "--merge", *map(str, order)]) == 0
+
+    def rows(path, name):
+        with (path / name).open() as fh:
+            return list(csv.DictReader(fh))
+
+    def same(a, b):
+        for key in a:
+            if key in ("infer_seconds", "mean_infer_seconds"):  # timings differ between runs
+                continue
+            try:
+                assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-5, abs=1e-9, nan_ok=True), key
+            except ValueError:
+                assert a[key] == b[key], key
+
+    for name in ("results.csv", "trials.csv"):
+        merged_rows, single_rows = rows(merged, name), rows(single, name)
+        assert len(merged_rows) == len(single_rows) > 0
+        for a, b in zip(merged_rows, single_rows, strict=True):
+            same(a, b)
+    text = (merged / "results.md").read_text()
+    assert "seed=0..1 in 3 chunks" in text and "trials=2" in text and text.count(" && ") == 2
+    single_text = (single / "results.md").read_text()
+    table = single_text[single_text.index("## Figure 4"):]
+    assert text[text.index("## Figure 4"):] == table
+    # A report rewritten from its own files is the same report.
+    assert cli.main(["--report-only", "--out", str(single)]) == 0
+    assert (single / "results.md").read_text() == single_text
+    back = report.read_trials_csv(single / "trials.csv")
+    assert [(r.condition, r.seed, r.planner, r.cells) for r in back] == \
+        [(r["condition"], int(r["seed"]), r["planner"], tuple(tuple(map(int, c.split(","))) for c in r["cells"].split()))
+         for r in rows(single, "trials.csv")]
+    # Clashes are refused with exit status 2 and a message naming the problem.
+    capsys.readouterr()
+    assert cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks["side0"]),
+                     str(chunks["side0"])]) == 2
+    assert "--merge: the chunks share seeds" in capsys.readouterr().err
+    other = tmp_path / "other_beta"
+    assert cli.main(["--trials", "1", "--seed", "5", "--beta", "7", "--out", str(other), "--conditions",
+                     "side_effects", *common]) == 0
+    capsys.readouterr()
+    assert cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks["side0"]), str(other)]) == 2
+    assert "--merge: the chunks' settings differ" in capsys.readouterr().err
+    assert cli.main(["--report-only", "--out", str(merged), "--merge", str(tmp_path / "missing")]) == 2
+    assert "cannot read" in capsys.readouterr().err
+    assert app.main(["--report-only", "--via-ros", "--out", str(merged)]) == 2
+    assert "--report-only: not with --via-ros" in capsys.readouterr().err

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from ird_core.experiments import active, active_report, parallel
+from ird_core.experiments.chunks import merge_runs, read_run
 from ird_core.experiments.report import RunRecord
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS
@@ -96,44 +97,28 @@ def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], setting
     return 0
 
 
-#: Settings that may differ between the chunks of one report.
-CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
-
-
 def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
     """Rewrite every report file in ``out`` from ``active_trials.csv`` and ``run.json`` of ``out``
-    or of each chunk directory (their seeds must be disjoint and their other settings equal);
-    exit status 0, 2 when a file cannot be read or the chunks do not fit together."""
-    import json
-
+    or of each chunk directory (:mod:`ird_core.experiments.chunks`: disjoint seeds, other settings
+    equal); exit status 0, 2 when a file cannot be read or the chunks do not fit together."""
     runs, results = [], []
     for source in chunks or [out]:
         try:
-            runs.append(json.loads((source / "run.json").read_text()))
+            runs.append(read_run(source))
             results += active_report.read_results_csv(source / "active_trials.csv")
         except (OSError, ValueError, KeyError) as exc:
             print(f"--report-only: cannot read {source}: {exc}", file=sys.stderr)
             return 2
-    fixed = [{k: v for k, v in run["settings"].items() if k not in CHUNK_KEYS} for run in runs]
-    if any(f != fixed[0] for f in fixed):
-        print("--merge: the chunks' settings differ", file=sys.stderr)
-        return 2
-    keys = [(r.condition, r.seed, r.strategy, r.num_queries) for r in results]
-    if len(keys) != len(set(keys)):
-        print("--merge: the chunks share seeds", file=sys.stderr)
+    try:
+        merged = merge_runs(runs, [(r.condition, r.seed, r.strategy, r.num_queries) for r in results],
+                            (r.seed for r in results))
+    except ValueError as exc:
+        print(f"--merge: {exc}", file=sys.stderr)
         return 2
     conditions = list(dict.fromkeys(r.condition for r in results))
-    settings = dict(runs[0]["settings"])
-    for key in ("query_counts", "strategies"):
-        settings[key] = tuple(settings[key])
-    command = runs[0]["command"]
-    if chunks:
-        seeds = sorted({r.seed for r in results})
-        settings.update(trials=len(seeds), seed=f"{seeds[0]}..{seeds[-1]} in {len(runs)} chunks")
-        command = " && ".join(run["command"] for run in runs)
     out.mkdir(parents=True, exist_ok=True)
     active_report.write_report(out, results, active.aggregate(results), conditions,
-                               RunRecord(command, sum(float(run["wall_seconds"]) for run in runs), settings))
+                               RunRecord(merged.command, merged.wall, merged.settings))
     print(f"report rewritten in {out}")
     return 0
 

@@ -55,6 +55,12 @@ novelty-avoiding, Sample-Z's other counts reading, Sample-Z without its own term
 frontier.md (the table and the goal check: lava <= 2%, target >= 0.8 x literal, gap closed >= 90%)
 and frontier_<condition>.png.
 
+Chunks: --report-only --out DIR rewrites DIR's report from its trials.csv and run.json (nothing
+runs); with --merge A B ... it writes into DIR the report of runs A, B, ... made with the same
+settings over other seeds or conditions (e.g. one long condition per run), the trials in a single
+run's order (ird_core.experiments.chunks). The trials' numbers come from the csv (6 significant
+digits), so a merged report agrees with a single run's to that precision.
+
 Exit status: 0 done, 2 a bad argument (the message names it).
 """
 
@@ -68,6 +74,7 @@ from pathlib import Path
 from typing import Any
 
 from ird_core.experiments import frontier_report, parallel, report
+from ird_core.experiments.chunks import merge_runs, read_run
 from ird_core.experiments.summaries import aggregate
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
@@ -76,7 +83,7 @@ from ird_core.worlds.world_file import load_world_file
 
 __all__ = ["SPEC_FLAGS", "SHARED_SAMPLER_FLAGS", "DEFAULT_TRIALS", "build_parser", "resolve_spec_flags",
            "z_samplers", "spec_settings", "trial_settings", "world_conditions", "run_local", "run_dask",
-           "run_experiment", "main"]
+           "run_experiment", "rewrite_report", "main"]
 
 #: The checkout (``--out``'s default lies in it).
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -137,6 +144,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--z-sampler", nargs="+", action="append", default=[], metavar="ARG",
                    help="METHOD FIELD=VALUE ...: that Z-approximation's own sampler settings "
                         f"(fields {', '.join(Z_SAMPLER_INTS + Z_SAMPLER_REALS)})")
+    p.add_argument("--report-only", action="store_true",
+                   help="run nothing: rewrite the report in --out from its trials.csv and run.json")
+    p.add_argument("--merge", nargs="+", type=Path, default=None, metavar="DIR",
+                   help="with --report-only: the report of the runs in DIR... (chunks of other seeds or "
+                        "conditions with the same settings, e.g. one condition per run) written into --out")
     return p
 
 
@@ -272,6 +284,36 @@ def run_experiment(args: argparse.Namespace, settings: dict[str, Any], condition
     return 0
 
 
+def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
+    """Rewrite the report in ``out`` from ``trials.csv`` and ``run.json`` of ``out`` or of each
+    chunk directory (:mod:`ird_core.experiments.chunks`), its trials in a single run's order
+    (conditions in the paper's order, then seeds), and print Figure 4's table. Exit status 0, 2
+    when a file cannot be read or the chunks do not fit together."""
+    runs, results = [], []
+    for source in chunks or [out]:
+        try:
+            runs.append(read_run(source))
+            results += report.read_trials_csv(source / "trials.csv")
+        except (OSError, ValueError, KeyError) as exc:
+            print(f"--report-only: cannot read {source}: {exc}", file=sys.stderr)
+            return 2
+    try:
+        merged = merge_runs(runs, [(r.experiment, r.condition, r.seed, r.planner) for r in results],
+                            (r.seed for r in results))
+    except ValueError as exc:
+        print(f"--merge: {exc}", file=sys.stderr)
+        return 2
+    results.sort(key=lambda r: (report.ORDER.index(r.condition), r.seed))  # stable: a trial's rows keep their order
+    summaries = aggregate(results)
+    run = report.RunRecord(merged.command, merged.wall, merged.settings)
+    out.mkdir(parents=True, exist_ok=True)
+    report.write_report(out, results, summaries, run)
+    frontier_report.write_frontier(out, summaries, run)
+    print(report.markdown_table(summaries, "main"))
+    print(f"report rewritten in {out}")
+    return 0
+
+
 def command_line(argv: list[str] | None) -> str:
     """The command as results.md records it."""
     return f"{COMMAND} " + " ".join(sys.argv[1:] if argv is None else argv)
@@ -280,6 +322,8 @@ def command_line(argv: list[str] | None) -> str:
 def main(argv: list[str] | None = None) -> int:
     """The experiments without ROS (``ird_ros.apps.experiments`` adds ``--via-ros``)."""
     args = build_parser().parse_args(argv)
+    if args.report_only:
+        return rewrite_report(args.out, args.merge)
     try:
         settings = trial_settings(args)
         conditions = world_conditions(args, settings)

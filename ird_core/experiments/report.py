@@ -33,7 +33,8 @@ from ird_core.experiments.trials import (
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
 
-__all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "write_results_csv", "read_results_csv",
+__all__ = ["ORDER", "Z_LABEL", "RunRecord", "write_trials_csv", "read_trials_csv", "write_results_csv",
+           "read_results_csv",
            "markdown_table", "claim_check", "factorial_note", "write_markdown", "figure4_figures", "factorial_figures",
            "plot_figures", "replot", "write_report"]
 
@@ -60,6 +61,30 @@ class RunRecord:
 def write_trials_csv(path: Path, results: Sequence[TrialResult]) -> None:
     """``trials.csv``: one row per trial x planner."""
     write_csv(path, TRIAL_COLUMNS, (dict(dataclasses.asdict(r), cells=cells_text(r.cells)) for r in results))
+
+
+def read_trials_csv(path: Path) -> list[TrialResult]:
+    """The rows of a ``trials.csv`` (:func:`write_trials_csv`'s inverse up to the csv's 6 significant
+    digits); ``ValueError`` / ``KeyError`` naming the bad row or column."""
+    import csv
+
+    def cells(text: str) -> tuple[tuple[int, int], ...]:
+        return tuple((int(a), int(b)) for a, _, b in (pair.partition(",") for pair in text.split()))
+
+    flag = {"0": False, "1": True}
+    out = []
+    with open(path, newline="") as handle:
+        for line, row in enumerate(csv.DictReader(handle), start=2):
+            try:
+                out.append(TrialResult(
+                    row["experiment"], row["condition"], int(row["seed"]), row["planner"], row["z_approx"],
+                    row["granularity"], row["baseline"], flag[row["touched_lava"]], flag[row["reached_target"]],
+                    float(row["true_return"]), float(row["objective"]), row["solver"], flag[row["fallback"]],
+                    float(row["infer_seconds"]), float(row["r_hat_max"]), float(row["acceptance_rate"]),
+                    cells(row["cells"])))
+            except (KeyError, ValueError) as exc:
+                raise ValueError(f"{path.name} line {line}: {exc!r}") from None
+    return out
 
 
 def write_results_csv(path: Path, summaries: Sequence[CellSummary]) -> None:

@@ -48,7 +48,11 @@ def main(argv: list[str] | None = None) -> int:
     """The experiments, through the graph with ``--via-ros``; exit status 0, 1 (a --via-ros
     disagreement) or 2 (a bad argument)."""
     args = build_parser().parse_args(argv)
+    if args.report_only and not args.via_ros:
+        return cli.rewrite_report(args.out, args.merge)
     try:
+        if args.report_only:
+            raise ValueError("--report-only: not with --via-ros (it runs nothing)")
         settings = cli.trial_settings(args)
         if args.via_ros and args.world is not None:
             raise ValueError("--world: not supported with --via-ros (use launch_graph.py --world FILE)")

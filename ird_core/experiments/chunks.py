@@ -1,0 +1,62 @@
+"""One report from several runs ("chunks") of the same experiment: runs with equal settings over
+disjoint trials, e.g. seeds 0-49 and 50-99, or one condition per machine or per day.
+
+Invariants: chunks are merged only when every setting but :data:`CHUNK_KEYS` is equal and no
+trial key (condition, seed, planner, ...) occurs in two of them; the merged settings give the
+number of distinct seeds as ``trials`` and the seeds' range and chunk count as ``seed``; the
+merged command joins the chunks' commands with ``" && "``, and the merged wall time is the sum of
+theirs. Each chunk is a report directory with its ``run.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Hashable, Iterable, Mapping, Sequence
+
+__all__ = ["CHUNK_KEYS", "MergedRun", "read_run", "merge_runs"]
+
+#: Settings that may differ between the chunks of one report.
+CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
+
+
+@dataclass(frozen=True)
+class MergedRun:
+    """How the merged report states its run: the command, the wall time (s) and the settings."""
+
+    command: str
+    wall: float
+    settings: dict[str, Any]
+
+
+def read_run(source: Path) -> dict[str, Any]:
+    """A report's ``run.json``, its settings' lists as the tuples the run held (``OSError`` /
+    ``ValueError`` / ``KeyError`` if missing or malformed)."""
+    run = json.loads((source / "run.json").read_text())
+    missing = [key for key in ("command", "wall_seconds", "settings") if key not in run]
+    if missing:
+        raise KeyError(f"run.json lacks {', '.join(missing)}")
+    run["settings"] = {k: tuple(v) if isinstance(v, list) else v for k, v in dict(run["settings"]).items()}
+    return run
+
+
+def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seeds: Iterable[int]) -> MergedRun:
+    """The run of the chunks ``runs`` (their ``run.json``), given every result's trial key and seed.
+
+    Raises:
+        ValueError: ``"the chunks' settings differ"`` or ``"the chunks share seeds"`` (a trial key
+            occurs twice).
+    """
+    fixed = [{k: v for k, v in run["settings"].items() if k not in CHUNK_KEYS} for run in runs]
+    if any(f != fixed[0] for f in fixed):
+        raise ValueError("the chunks' settings differ")
+    if len(keys) != len(set(keys)):
+        raise ValueError("the chunks share seeds")
+    settings = dict(runs[0]["settings"])
+    command = runs[0]["command"]
+    if len(runs) > 1:
+        distinct = sorted(set(seeds))
+        settings.update(trials=len(distinct), seed=f"{distinct[0]}..{distinct[-1]} in {len(runs)} chunks")
+        command = " && ".join(run["command"] for run in runs)
+    return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings)
