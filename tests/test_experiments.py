@@ -472,5 +472,14 @@ def test_chunks_merge_into_the_report_of_one_run(tmp_path, capsys):
     assert "--merge: the chunks' settings differ" in capsys.readouterr().err
     assert cli.main(["--report-only", "--out", str(merged), "--merge", str(tmp_path / "missing")]) == 2
     assert "cannot read" in capsys.readouterr().err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "run.json").write_text((other / "run.json").read_text())
+    (empty / "trials.csv").write_text((other / "trials.csv").read_text().splitlines()[0] + "\n")
+    assert cli.main(["--report-only", "--out", str(empty)]) == 2
+    assert "--report-only: no trials to report" in capsys.readouterr().err
+    (empty / "trials.csv").write_text((other / "trials.csv").read_text().replace(",side_effects,5,", ",side_effects,x,"))
+    assert cli.main(["--report-only", "--out", str(empty)]) == 2
+    assert "trials.csv line 2" in capsys.readouterr().err
     assert app.main(["--report-only", "--via-ros", "--out", str(merged)]) == 2
     assert "--report-only: not with --via-ros" in capsys.readouterr().err

@@ -113,7 +113,7 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
         merged = merge_runs(runs, [(r.condition, r.seed, r.strategy, r.num_queries) for r in results],
                             (r.seed for r in results))
     except ValueError as exc:
-        print(f"--merge: {exc}", file=sys.stderr)
+        print(f"{'--merge' if chunks else '--report-only'}: {exc}", file=sys.stderr)
         return 2
     conditions = list(dict.fromkeys(r.condition for r in results))
     out.mkdir(parents=True, exist_ok=True)

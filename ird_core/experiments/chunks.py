@@ -45,9 +45,12 @@ def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seed
     """The run of the chunks ``runs`` (their ``run.json``), given every result's trial key and seed.
 
     Raises:
-        ValueError: ``"the chunks' settings differ"`` or ``"the chunks share seeds"`` (a trial key
-            occurs twice).
+        ValueError: ``"no trials to report"``, ``"the chunks' settings differ"`` or ``"the
+            chunks share seeds"`` (a trial key occurs twice).
     """
+    distinct = sorted(set(seeds))
+    if not distinct:
+        raise ValueError("no trials to report")
     fixed = [{k: v for k, v in run["settings"].items() if k not in CHUNK_KEYS} for run in runs]
     if any(f != fixed[0] for f in fixed):
         raise ValueError("the chunks' settings differ")
@@ -56,7 +59,6 @@ def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seed
     settings = dict(runs[0]["settings"])
     command = runs[0]["command"]
     if len(runs) > 1:
-        distinct = sorted(set(seeds))
         settings.update(trials=len(distinct), seed=f"{distinct[0]}..{distinct[-1]} in {len(runs)} chunks")
         command = " && ".join(run["command"] for run in runs)
     return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings)

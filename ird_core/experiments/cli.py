@@ -301,7 +301,7 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
         merged = merge_runs(runs, [(r.experiment, r.condition, r.seed, r.planner) for r in results],
                             (r.seed for r in results))
     except ValueError as exc:
-        print(f"--merge: {exc}", file=sys.stderr)
+        print(f"{'--merge' if chunks else '--report-only'}: {exc}", file=sys.stderr)
         return 2
     results.sort(key=lambda r: (report.ORDER.index(r.condition), r.seed))  # stable: a trial's rows keep their order
     summaries = aggregate(results)
