@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from ird_core.experiments import active, active_report, parallel
-from ird_core.experiments.chunks import merge_runs, read_run
+from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.report import RunRecord
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS
@@ -101,19 +101,11 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
     """Rewrite every report file in ``out`` from ``active_trials.csv`` and ``run.json`` of ``out``
     or of each chunk directory (:mod:`ird_core.experiments.chunks`: disjoint seeds, other settings
     equal); exit status 0, 2 when a file cannot be read or the chunks do not fit together."""
-    runs, results = [], []
-    for source in chunks or [out]:
-        try:
-            runs.append(read_run(source))
-            results += active_report.read_results_csv(source / "active_trials.csv")
-        except (OSError, ValueError, KeyError) as exc:
-            print(f"--report-only: cannot read {source}: {exc}", file=sys.stderr)
-            return 2
     try:
-        merged = merge_runs(runs, [(r.condition, r.seed, r.strategy, r.num_queries) for r in results],
-                            (r.seed for r in results))
+        merged, results = load_chunks(out, chunks, "active_trials.csv", active_report.read_results_csv,
+                                      lambda r: (r.condition, r.seed, r.strategy, r.num_queries), lambda r: r.seed)
     except ValueError as exc:
-        print(f"{'--merge' if chunks else '--report-only'}: {exc}", file=sys.stderr)
+        print(exc, file=sys.stderr)
         return 2
     conditions = list(dict.fromkeys(r.condition for r in results))
     out.mkdir(parents=True, exist_ok=True)

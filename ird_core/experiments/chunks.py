@@ -13,9 +13,11 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Hashable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Hashable, Iterable, Mapping, Sequence, TypeVar
 
-__all__ = ["CHUNK_KEYS", "MergedRun", "read_run", "merge_runs"]
+__all__ = ["CHUNK_KEYS", "MergedRun", "read_run", "merge_runs", "load_chunks"]
+
+T = TypeVar("T")
 
 #: Settings that may differ between the chunks of one report.
 CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
@@ -62,3 +64,28 @@ def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seed
         settings.update(trials=len(distinct), seed=f"{distinct[0]}..{distinct[-1]} in {len(runs)} chunks")
         command = " && ".join(run["command"] for run in runs)
     return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings)
+
+
+def load_chunks(out: Path, chunks: "Sequence[Path] | None", trials_name: str,
+                read_trials: Callable[[Path], list[T]], trial_key: Callable[[T], Hashable],
+                seed: Callable[[T], int]) -> tuple[MergedRun, list[T]]:
+    """The merged run and the results, in chunk order, of each chunk directory (or of ``out``
+    alone): its ``run.json`` and its ``trials_name`` file, read by ``read_trials``.
+
+    Raises:
+        ValueError: ``"--report-only: cannot read DIR: ..."``, or the :func:`merge_runs` refusal
+            prefixed by ``--merge`` (``--report-only`` without chunks).
+    """
+    runs: list[dict[str, Any]] = []
+    results: list[T] = []
+    for source in chunks or [out]:
+        try:
+            runs.append(read_run(source))
+            results += read_trials(source / trials_name)
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"--report-only: cannot read {source}: {exc}") from None
+    try:
+        merged = merge_runs(runs, [trial_key(r) for r in results], (seed(r) for r in results))
+    except ValueError as exc:
+        raise ValueError(f"{'--merge' if chunks else '--report-only'}: {exc}") from None
+    return merged, results

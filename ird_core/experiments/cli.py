@@ -74,7 +74,7 @@ from pathlib import Path
 from typing import Any
 
 from ird_core.experiments import frontier_report, parallel, report
-from ird_core.experiments.chunks import merge_runs, read_run
+from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.summaries import aggregate
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
@@ -289,19 +289,11 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
     chunk directory (:mod:`ird_core.experiments.chunks`), its trials in a single run's order
     (conditions in the paper's order, then seeds), and print Figure 4's table. Exit status 0, 2
     when a file cannot be read or the chunks do not fit together."""
-    runs, results = [], []
-    for source in chunks or [out]:
-        try:
-            runs.append(read_run(source))
-            results += report.read_trials_csv(source / "trials.csv")
-        except (OSError, ValueError, KeyError) as exc:
-            print(f"--report-only: cannot read {source}: {exc}", file=sys.stderr)
-            return 2
     try:
-        merged = merge_runs(runs, [(r.experiment, r.condition, r.seed, r.planner) for r in results],
-                            (r.seed for r in results))
+        merged, results = load_chunks(out, chunks, "trials.csv", report.read_trials_csv,
+                                      lambda r: (r.experiment, r.condition, r.seed, r.planner), lambda r: r.seed)
     except ValueError as exc:
-        print(f"{'--merge' if chunks else '--report-only'}: {exc}", file=sys.stderr)
+        print(exc, file=sys.stderr)
         return 2
     results.sort(key=lambda r: (report.ORDER.index(r.condition), r.seed))  # stable: a trial's rows keep their order
     summaries = aggregate(results)
