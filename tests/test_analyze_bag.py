@@ -331,3 +331,100 @@ def test_a_bag_without_missions_says_so_and_draws_no_trajectories(tmp_path: Path
     assert "/plan 0" in line and "/rob/status 0" in line
     assert "run the graph with --mission, or drive Rob with a client" in line
     assert "Plots:" not in text and not list(out.glob("trajectories_*.png"))
+
+
+# ---------------------------------------------------------------------------- issue 43
+
+
+def _one_question_bag(path: Path) -> Path:
+    """A bag with the map and one answered question (what ``demo.sh --queries 1`` records)."""
+    b = BagBuilder(path)
+    s = b.store
+    classes = terrain_classes()
+    h, w = classes.shape
+    b.write("/world/terrain", "ird_msgs/msg/TerrainGrid", T0,
+            make(s, "ird_msgs/msg/TerrainGrid", header=b.header(T0), info=b.info(h, w), class_names=CLASS_NAMES,
+                 classes=classes.ravel().copy(), probabilities=np.zeros(0, np.float32),
+                 novelty=np.zeros(0, np.float32)))
+    options = [[(0, 0), (1, 0), (2, 0)], [(0, 0), (0, 1), (1, 1)]]
+    for k, (event, chosen) in enumerate((("proposed", -1), ("answered", 0))):
+        t = T0 + (k + 1) * SEC
+        paths = [make(s, "nav_msgs/msg/Path", header=b.header(t), poses=[b.pose(t, *centre(*c)) for c in o])
+                 for o in options]
+        b.write("/ird/queries", "ird_msgs/msg/QueryRecord", t,
+                make(s, "ird_msgs/msg/QueryRecord", header=b.header(t), query_id=1, event=event, strategy="evoi",
+                     options=paths, feature_names=["dirt", "lava"], option_features=np.array([1.0, 0.0, 2.0, 1.0]),
+                     information_gain=0.5, chosen=chosen, beta=1.0 if chosen >= 0 else 0.0,
+                     answered_by="simulated" if chosen >= 0 else "", num_answers=int(chosen >= 0)))
+    b.close()
+    return path
+
+
+def test_one_question_is_drawn_on_a_single_panel(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``demo.sh --queries 1``: one round is a 1 x 1 grid of panels (it used to end in
+    ``'Axes' object has no attribute 'flat'``, reported as an unreadable bag)."""
+    bag_path = _one_question_bag(tmp_path / "one_question")
+    out = tmp_path / "plots"
+    assert analyze_bag_app.main([str(bag_path), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert (out / "query_rounds.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_plot_that_fails_is_reported_as_a_plotting_failure_not_an_unreadable_bag(
+        bag: tuple[Path, dict[str, Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from ird_ros.bags import analysis
+
+    def broken(*_args: Any, **_kwargs: Any) -> Path:
+        raise AttributeError("a plotting bug")
+
+    monkeypatch.setattr(analysis, "plot_posterior", broken)
+    path, _exp = bag
+    out = tmp_path / "out"
+    code = analyze_bag_app.main([str(path), "--out", str(out), "--json", str(tmp_path / "r.json")])
+    captured = capsys.readouterr()
+    assert code == 3, captured.err
+    assert "cannot read" not in captured.err
+    assert "plot(s) could not be drawn (the bag was read" in captured.err
+    assert "posterior.png: AttributeError: a plotting bug" in captured.err
+    assert "Missions:" in captured.out  # the report is printed
+    assert (out / "true_return.png").is_file() and (out / "trajectories_0.png").is_file()  # the others drawn
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["plot_errors"] == ["posterior.png: AttributeError: a plotting bug"]
+
+
+def test_a_cancelled_drive_shows_as_cancelled_and_a_drive_that_stayed_put_says_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    b = BagBuilder(tmp_path / "drives")
+    s = b.store
+
+    def status(t: int, label: str, step: int, cell: tuple[int, int], *, done: bool = False,
+               stopped: bool = False) -> None:
+        b.write("/rob/status", "ird_msgs/msg/RobStatus", t,
+                make(s, "ird_msgs/msg/RobStatus", header=b.header(t), row=cell[0], col=cell[1], terrain="dirt",
+                     step=step, horizon=4, done=done, stopped=stopped, true_return=0.1 * step, plan_label=label))
+
+    status(T0 + 1, "stays", 0, (0, 0))
+    for k in range(1, 5):  # a plan of five times the start cell: "succeeded", never left
+        status(T0 + 1 + k, "stays", k, (0, 0), done=k == 4)
+    status(T0 + 10, "cancelled", 0, (0, 0))
+    status(T0 + 11, "cancelled", 1, (0, 1))
+    status(T0 + 12, "cancelled", 1, (0, 1), done=True, stopped=True)  # /rob/stop: done and stopped
+    b.close()
+    report = analyze(tmp_path / "drives")
+    rows = {m["label"]: m for m in report["missions"]}
+    assert (rows["stays"]["end"], rows["stays"]["outcome"]) == ("done", "stayed put")
+    assert (rows["cancelled"]["end"], rows["cancelled"]["outcome"]) == ("cancelled", "moved 1 cell, reached no target")
+    assert analyze_bag_app.main([str(tmp_path / "drives"), "--no-plots"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any(" cancelled " in line and line.lstrip().split()[1] == "cancelled" for line in lines)
+    assert any(line.rstrip().endswith("stayed put") for line in lines)
+
+
+def test_drive_outcome_names_what_rob_did() -> None:
+    from ird_ros.bags.missions import drive_outcome
+
+    assert drive_outcome(touched_lava=False, reached_target=False, moves=0) == "stayed put"
+    assert drive_outcome(touched_lava=True, reached_target=False, moves=3) == "touched lava"
+    assert drive_outcome(touched_lava=True, reached_target=True, moves=3) == "touched lava, reached the target"
+    assert drive_outcome(touched_lava=False, reached_target=True, moves=2) == "reached the target"
+    assert drive_outcome(touched_lava=None, reached_target=None, moves=2) == "moved 2 cells, reached no target"

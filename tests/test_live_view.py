@@ -180,3 +180,115 @@ def test_a_late_client_gets_every_channels_current_state() -> None:
             client.close()
     finally:
         view.stop()
+
+
+# ---------------------------------------------------------------------------- issue 43: per-client state, origins
+
+
+def _terrain(stamp_ns: int = 1) -> object:
+    return terrain_layer(np.array([[0, 3]]), NAMES, resolution=1.0, origin=(0, 0), stamp_ns=stamp_ns)
+
+
+def test_a_new_subscriber_gets_the_state_and_the_other_clients_get_nothing_again() -> None:
+    """The latched state goes to the client that subscribed only: 200 clients used to cost every
+    client 200 copies of every channel (1.34 GB)."""
+    view = LiveView("127.0.0.1", 0)
+    first = second = None
+    try:
+        view.show_grid("terrain", _terrain())
+        view.show_json("posterior", {"terrains": {}})
+        first = FoxgloveClient(view.url)
+        first.wait_for(lambda c: "/viz/terrain" in c.messages and "/viz/posterior" in c.messages, 10, "first's state")
+        second = FoxgloveClient(view.url)
+        second.wait_for(lambda c: "/viz/terrain" in c.messages and "/viz/posterior" in c.messages, 10,
+                        "second's state")
+        view.show_json("query", {"query_id": 1})  # logged after second's subscriptions: a marker for first
+        first.wait_for(lambda c: "/viz/query" in c.messages, 10, "the marker")
+        assert len(first.messages["/viz/terrain"]) == 1 and len(first.messages["/viz/posterior"]) == 1, \
+            {t: len(m) for t, m in first.messages.items()}
+    finally:
+        for client in (first, second):
+            if client is not None:
+                client.close()
+        view.stop()
+
+
+def _handshake(url: str, **headers: str) -> tuple[int, str]:
+    """Status and body of a WebSocket handshake with these headers (101: accepted)."""
+    import websocket
+
+    try:
+        ws = websocket.create_connection(url, subprotocols=[SUBPROTOCOL], timeout=10, **headers)
+    except websocket.WebSocketBadStatusException as exc:
+        body = exc.resp_body.decode() if isinstance(exc.resp_body, bytes) else str(exc.resp_body)
+        return exc.status_code, body
+    ws.close()
+    return 101, ""
+
+
+def test_the_live_view_refuses_foreign_origins_and_hosts_with_403() -> None:
+    """A web page in a browser on the machine sends its own Origin (and a DNS-rebinding page its own
+    Host): refused like the designer page does. Loopback origins, the desktop apps' and none pass."""
+    import json as json_module
+
+    view = LiveView("127.0.0.1", 0)
+    try:
+        status, body = _handshake(view.url, origin="https://evil.example")
+        assert status == 403, (status, body)
+        assert json_module.loads(body)["message"].startswith("Origin: 'https://evil.example' is not allowed")
+        status, body = _handshake(view.url, host="evil.example:8766")
+        assert status == 403 and json_module.loads(body)["message"].startswith("Host: "), (status, body)
+        for origin in ("http://localhost:3000", "http://127.0.0.1:8080", "file://", "https://app.foxglove.dev"):
+            assert _handshake(view.url, origin=origin)[0] == 101, origin
+        assert _handshake(view.url)[0] == 101
+        client = FoxgloveClient(view.url)  # still serving after the refusals
+        try:
+            client.wait_for(lambda c: len(c.channels) == len(CHANNELS), 10, "the channels")
+        finally:
+            client.close()
+    finally:
+        view.stop()
+
+
+def test_allowed_origins_are_configurable() -> None:
+    view = LiveView("127.0.0.1", 0, allowed_origins=["https://lichtblick.example"])
+    try:
+        assert _handshake(view.url, origin="https://lichtblick.example")[0] == 101
+        assert _handshake(view.url, origin="https://app.foxglove.dev")[0] == 403
+        assert _handshake(view.url, origin="http://[::1]:5173")[0] == 101  # loopback always
+    finally:
+        view.stop()
+
+
+def test_a_port_in_use_is_an_oserror_and_the_message_names_viz_port() -> None:
+    from ird_ros.viz import port_in_use_message
+
+    view = LiveView("127.0.0.1", 0)
+    try:
+        with pytest.raises(OSError) as caught:
+            LiveView("127.0.0.1", view.port)
+        text = port_in_use_message("127.0.0.1", view.port, caught.value)
+        assert text.startswith(f"port: cannot listen on 127.0.0.1:{view.port}") and "--viz-port" in text
+    finally:
+        view.stop()
+
+
+def _decoded(message: object) -> dict:
+    schema = type(message).get_schema()
+    return decode(descriptor_pool(bytes(schema.data)), "." + schema.name, message.encode())
+
+
+def test_a_stamp_before_the_epoch_is_shown_as_zero() -> None:
+    """/odom or /world/terrain with stamp.sec = -1 used to raise OverflowError in the node."""
+    view = LiveView("127.0.0.1", 0)
+    try:
+        view.show_grid("terrain", _terrain(stamp_ns=-1_000_000_000))
+        assert _decoded(view.latest("terrain"))["timestamp"] == {"seconds": 0, "nanos": 0}
+        trail = RobTrail(5)
+        trail.add(0.5, 0.5, 0.0, 1.0, -5)
+        view.show_rob(trail, 1.0)
+        assert _decoded(view.latest("trail"))["timestamp"] == {"seconds": 0, "nanos": 0}
+        big = _decoded(grid_message(_terrain(stamp_ns=2**40 * 1_000_000_000)))
+        assert big["timestamp"]["seconds"] == 2**32 - 1
+    finally:
+        view.stop()

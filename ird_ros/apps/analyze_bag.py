@@ -11,8 +11,10 @@ Prints:
   - per topic: type, message count, first and last log time (s since the bag's first
     message), mean rate, QoS durability;
   - per mission (one executed plan, see ird_ros.bags.missions): label, plan moves and
-    length, executed length (odometry), steps, touched lava, reached target, true return
-    (from the mission's final /rob/status);
+    length, executed length (odometry), steps, how it ended (done, cancelled: stopped before
+    the plan's end, running), touched lava, reached target, what Rob did (touched lava,
+    reached the target, stayed put, moved N cells) and the true return (from the mission's
+    final /rob/status);
   - per plan label: runs, lava and target fractions, mean true return;
   - per question to the designer (/ird/queries): query id, strategy, information gain,
     options, answer, who answered, answers in the evidence after it.
@@ -20,7 +22,8 @@ Writes into --out (default: BAG_analysis next to the bag) trajectories_<i>.png (
 odometry and plans over the ground-truth /world/terrain; none for a bag without missions, which
 says so), true_return.png, posterior.png and
 query_rounds.png (each question's options on the map); with --json, the whole report as JSON.
-Exit status 1 if the bag can't be read.
+Exit status 1 if the bag can't be read; 3 if the bag was read but a plot could not be drawn
+(the report is printed, the other plots written, the failure named as a plotting one).
 """
 
 from __future__ import annotations
@@ -77,12 +80,12 @@ def _print_missions(report: dict[str, Any]) -> None:
     wl = max([len("label")] + [len(m["label"]) for m in missions])
     print("Missions:")
     print(f"{'#':>3}  {'label':<{wl}}  {'start[s]':>8}  {'plan T':>6}  {'plan[m]':>8}  {'odom[m]':>8}  "
-          f"{'steps':>9}  {'done':>5}  {'lava':>5}  {'target':>6}  {'true return':>11}")
+          f"{'steps':>9}  {'end':>9}  {'lava':>5}  {'target':>6}  {'true return':>11}  outcome")
     for m in missions:
         print(f"{m['index']:>3}  {m['label']:<{wl}}  {m['start_s']:>8.3f}  {m['plan_moves']:>6}  "
               f"{_fmt(m['plan_length_m'], '.2f'):>8}  {_fmt(m['executed_length_m'], '.2f'):>8}  "
-              f"{m['steps']:>4}/{m['horizon']:<4}  {str(m['done']):>5}  {str(m['touched_lava']):>5}  "
-              f"{str(m['reached_target']):>6}  {_fmt(m['true_return']):>11}")
+              f"{m['steps']:>4}/{m['horizon']:<4}  {m['end']:>9}  {str(m['touched_lava']):>5}  "
+              f"{str(m['reached_target']):>6}  {_fmt(m['true_return']):>11}  {m['outcome']}")
     print()
     print("Per label:")
     for label, s in report["labels"].items():
@@ -119,7 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Analyse, print and (with --json) save the report; exit status 0, 1 if the bag can't be read."""
+    """Analyse, print and (with --json) save the report; exit status 0, 1 if the bag can't be read,
+    3 if a plot could not be drawn."""
     args = build_parser().parse_args(argv)
     if not (args.bag / "metadata.yaml").is_file():
         print(f"error: {args.bag} is not a readable rosbag2 folder (no metadata.yaml; "
@@ -134,4 +138,10 @@ def main(argv: list[str] | None = None) -> int:
     print_report(report)
     if args.json:
         args.json.write_text(json.dumps(report, indent=2, default=float), encoding="utf-8")
+    if report["plot_errors"]:
+        print(f"error: {len(report['plot_errors'])} plot(s) could not be drawn (the bag was read; the fault is "
+              "in the plotting, not in the bag):", file=sys.stderr)
+        for line in report["plot_errors"]:
+            print(f"  {line}", file=sys.stderr)
+        return 3
     return 0

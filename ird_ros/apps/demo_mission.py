@@ -24,11 +24,13 @@ from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, TrialSpec
 from ird_core.vocabulary import PlanMode
 from ird_core.worlds import evaluation
 from ird_ros.apps.demo_rounds import Outcome, RoundResult, describe_counts, terrain_counts
+from ird_ros.bags.missions import drive_outcome
 from ird_ros.client import IrdClient, plan_request, query_request
 from ird_ros.client.navigation import CURRENT_POSTERIOR, NavigationFeedback, NavigationGoal, NavigationStatus
 from ird_ros.conversions.grids import feature_grid_from_msg as grid_from_msg
 from ird_ros.conversions.posterior import posterior_from_msg
 from ird_ros.graph import names
+from ird_ros.web.page_state import option_letter
 
 __all__ = ["Mission", "Results"]
 
@@ -95,7 +97,10 @@ class Mission:
         if result.status is not NavigationStatus.SUCCEEDED:
             raise SystemExit(f"/ird/navigate ({goal.label}) {result.status.name.lower()}: {result.message}")
         cells = [(int(r), int(c)) for r, c in result.cells]
-        print(f"/ird/navigate {goal.label}: objective {result.objective:.3f}; Rob drove {len(cells)} cells", flush=True)
+        moves = sum(1 for a, b in zip(cells, cells[1:]) if a != b)
+        did = drive_outcome(touched_lava=result.touched_lava, reached_target=result.reached_target, moves=moves)
+        print(f"/ird/navigate {goal.label}: objective {result.objective:.3f}; {len(cells)} cells driven: {did}",
+              flush=True)
         return Outcome(goal.label, cells, result.objective, bool(result.touched_lava), bool(result.reached_target),
                        float("nan") if result.true_return is None else float(result.true_return),
                        evaluation.reaches_gold(self.test_labels, cells))
@@ -166,7 +171,7 @@ class Mission:
             raise SystemExit(f"/ird/query failed: {result.message}")
         query = result.value
         counts = terrain_counts(self.test_labels, query.options)
-        described = "; ".join(f"{k}: {describe_counts(c)}" for k, c in enumerate(counts))
+        described = "; ".join(f"{option_letter(k)}: {describe_counts(c)}" for k, c in enumerate(counts))
         print(f"round {index}: query {query.query_id} in {time.monotonic() - t0:.1f} s, information gain "
               f"{query.information_gain:.3f} nats; options {described}; waiting for the {args.designer} "
               "designer...", flush=True)
@@ -174,7 +179,7 @@ class Mission:
         record = ird.wait_for_answer(query.query_id, timeout=math.inf if args.designer == "web" else 300.0)
         post = ird.posterior_of(record, timeout=60)
         ird.risk_map(after=risk_count)  # the planner's new risk map is out
-        print(f"round {index}: option {record.chosen} chosen by {record.answered_by}; re-sampled posterior "
+        print(f"round {index}: Option {option_letter(int(record.chosen))} chosen by {record.answered_by}; re-sampled posterior "
               f"({post.samples.shape[0]} samples, R-hat {post.r_hat_max:.3f}) {time.monotonic() - t0:.1f} s after "
               "the question", flush=True)
         plan = self.drive(f"IRD after {index}", MAIN_GRANULARITY, MAIN_BASELINE, post.samples)

@@ -3,7 +3,7 @@
     .venv/bin/python scripts/launch_graph.py [--nodes world,perception,...] [--params FILE] [--world FILE]
         [--record DIR] [--domain-id N | --private-domain] [--respawn NODE,...]
         [--timeout S] [--run-for S] [--output prefix|quiet|files] [--log-dir DIR] [--dds-network]
-        [--mission [N] [--mission-then-exit]] [--viz]
+        [--mission [N] [--mission-then-exit]] [--viz [--viz-port PORT]]
 
 Prints each node's output as ``[node] line`` (``--output prefix``, the default), then a
 status table (node, pid, state, ready after X s) once every node is ready, and reports a
@@ -41,7 +41,10 @@ the end, one printed line per goal (``[mission] seed 0 ird: SUCCEEDED, lava Fals
 ird_ros/apps/mission.py). The graph then keeps running (--run-for counts from there) so a
 recorder (--record) holds the missions for analyze_bag.py; --mission-then-exit stops it instead,
 with exit status 0 if every goal succeeded, else 1. --viz adds the viz node (a live view over the
-Foxglove protocol) when this checkout has it.
+Foxglove protocol) when this checkout has it; --viz-port PORT picks its port (default: the params
+file's, 8766; 0 = any free port) and the launcher prints the live view's URL once the graph is
+ready (``[launcher] live view: ws://127.0.0.1:PORT``). A port in use stops the viz node at
+start-up with a message naming --viz-port (a second graph with --viz needs another port).
 
 Exit status: 0 after a requested stop (signal or --run-for, also during the start-up checks);
 1 if the graph could not start, did not become ready within --timeout (what is missing is
@@ -64,6 +67,7 @@ from ird_core.worlds.world_file import load_world_file
 from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec
 from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
+from ird_ros.launch.plan import with_viz_port
 from ird_ros.nodes.world import with_world_file
 
 __all__ = ["main", "build_parser"]
@@ -99,8 +103,9 @@ def _csv(text: str) -> list[str]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line (every option documented in ``--help``)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    first, rest = __doc__.split("\n\n", 1)  # the usage line once (description), the rest as epilog
+    parser = argparse.ArgumentParser(description=first, formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog=rest)
     parser.add_argument("--nodes", type=_csv, default=None, help=f"comma-separated (default: {','.join(DEFAULT_NODES)})")
     parser.add_argument("--world", type=Path, default=None, metavar="FILE",
                         help="world file (YAML) the world node publishes instead of generating Lavaland")
@@ -127,6 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="another node table (a list of ird_ros.graph.NodeSpec), e.g. for tests' stand-ins")
     parser.add_argument("--viz", action="store_true",
                         help="also start the viz node (live view over the Foxglove protocol), if the node table has it")
+    parser.add_argument("--viz-port", type=int, default=None, metavar="PORT",
+                        help="the live view's port (default: the params file's, 8766; 0 = any free port, printed); "
+                             "with --viz or viz in --nodes")
     mission = parser.add_argument_group("mission (navigation goals once the graph is ready)")
     mission.add_argument("--mission", type=int, nargs="?", const=1, default=None, metavar="N",
                          help="for seeds 0..N-1 (N = 1 if omitted): generate the seed's world and send Rob the "
@@ -164,8 +172,13 @@ def _check_mission_args(parser: argparse.ArgumentParser, args: argparse.Namespac
         parser.error("--mission: needs the world and navigator nodes in --nodes")
     if args.viz and "viz" not in NODES_BY_NAME:
         print("[launcher] --viz: this checkout has no viz node; starting without it", flush=True)
-    elif args.viz:
+    elif args.viz and "viz" not in (args.nodes or ()):
         args.nodes = [*(args.nodes if args.nodes is not None else DEFAULT_NODES), "viz"]
+    if args.viz_port is not None:
+        if "viz" not in (args.nodes or ()):
+            parser.error("--viz-port: only with --viz (or viz in --nodes)")
+        if not 0 <= args.viz_port <= 65535:
+            parser.error(f"--viz-port: must be in 0..65535 (0 = any free port), got {args.viz_port}")
 
 
 def _make_launcher(args: argparse.Namespace) -> GraphLauncher:
@@ -183,6 +196,8 @@ def _node_table(args: argparse.Namespace) -> list[NodeSpec] | None:
     if args.node_table:
         module, _, attr = args.node_table.partition(":")
         specs = list(getattr(importlib.import_module(module), attr or "SPECS"))
+    if args.viz_port is not None:
+        specs = with_viz_port(specs, args.viz_port)
     if args.world is None:
         return specs
     try:
@@ -201,6 +216,8 @@ def _run(graph: GraphLauncher, args: argparse.Namespace, signals: _StopSignals) 
         code = _start_and_wait(graph, args.timeout, t_start)
         if code:
             return code
+        if "viz" in graph.pids():
+            _print_live_view(graph)
         if args.mission is not None:
             code = _mission(graph, args)
             if args.mission_then_exit:
@@ -237,6 +254,23 @@ def _start_and_wait(graph: GraphLauncher, timeout: float, t_start: float) -> int
     print(graph.status_table(), flush=True)
     print(f"[launcher] graph ready after {time.monotonic() - t_start:.2f} s", flush=True)
     return 0
+
+
+def _print_live_view(graph: GraphLauncher) -> None:
+    """The viz node's URL (the bound port, also for --viz-port 0), from its latched /viz/status."""
+    import json
+
+    from ird_ros.client import ClientTimeout, IrdClient
+    from ird_ros.graph import names
+
+    try:
+        with IrdClient(graph.domain_id, node_name="launcher_viz_status") as ird:
+            status = json.loads(ird.latest(names.TOPIC_VIZ_STATUS, timeout=30).data)
+    except (ClientTimeout, ValueError, KeyError) as exc:
+        _error(f"--viz: could not read /viz/status ({exc})")
+        return
+    print(f"[launcher] live view: {status['url']} (Foxglove or Lichtblick: open connection, Foxglove WebSocket)",
+          flush=True)
 
 
 def _mission(graph: GraphLauncher, args: argparse.Namespace) -> int:

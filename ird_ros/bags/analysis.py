@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from rosbags.typesys.store import Typestore
 
@@ -64,7 +64,9 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
     any /world/terrain just the paths; none for a bag without missions), ``true_return.png``, ``posterior.png`` (latest
     /ird/posterior, per terrain of the latest /world/terrain on the feature map with its layers)
     and ``query_rounds.png`` (each question's options on the map), each only
-    when the bag holds what it needs.
+    when the bag holds what it needs. A plot that fails to draw does not stop the others or the
+    report: ``plot_errors`` lists ``"<file>: <Type>: <text>"`` for each (the bag was read; the fault
+    is the plotting's).
     """
     bag = Path(bag)
     store = typestore or make_typestore()
@@ -78,8 +80,9 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
     start_ns = min(firsts) if firsts else 0
     end_ns = max(lasts) if lasts else 0
     plots: list[str] = []
+    plot_errors: list[str] = []
     if out_dir is not None:
-        plots = _write_plots(Path(out_dir), messages, missions, rounds, rounds_terrain, start_ns)
+        plots, plot_errors = _write_plots(Path(out_dir), messages, missions, rounds, rounds_terrain, start_ns)
     return {
         "bag": str(bag),
         "start_ns": start_ns,
@@ -90,14 +93,24 @@ def analyze(bag: str | Path, out_dir: str | Path | None = None, typestore: Types
         "labels": label_statistics(missions),
         "query_rounds": [round_summary(r, start_ns) for r in rounds],
         "plots": plots,
+        "plot_errors": plot_errors,
     }
 
 
 def _write_plots(out: Path, messages: dict[str, list[BagMessage]], missions: list[Mission], rounds: list[Round],
-                 rounds_terrain: Terrain | None, start_ns: int) -> list[str]:
-    """The PNG plots of :func:`analyze` in ``out``; their paths."""
+                 rounds_terrain: Terrain | None, start_ns: int) -> tuple[list[str], list[str]]:
+    """The PNG plots of :func:`analyze` in ``out``: their paths, and what failed to draw."""
     out.mkdir(parents=True, exist_ok=True)
-    plots: list[str] = []
+    written: list[str] = []
+    errors: list[str] = []
+
+    def draw(name: str, plot: Callable[[Path], Path]) -> None:
+        """``plot(out / name)``: its path into ``written``, or its failure into ``errors``."""
+        try:
+            written.append(str(plot(out / name)))
+        except Exception as exc:  # noqa: BLE001 - a plotting bug: reported, the other plots still drawn
+            errors.append(f"{name}: {type(exc).__name__}: {exc}")
+
     terrains = messages.get(names.TOPIC_TERRAIN, [])
     groups: dict[int, list[Mission]] = defaultdict(list)
     for m in missions:
@@ -106,16 +119,17 @@ def _write_plots(out: Path, messages: dict[str, list[BagMessage]], missions: lis
     for n, (tidx, ms) in enumerate(sorted(groups.items())):
         terrain = terrain_from_msg(terrains[tidx].msg) if tidx >= 0 else None
         title = f"Rob's trajectories on terrain #{tidx}" if tidx >= 0 else "Rob's trajectories"
-        plots.append(str(plot_trajectories(ms, terrain, out / f"trajectories_{n}.png", title)))
+        draw(f"trajectories_{n}.png", lambda path, ms=ms, terrain=terrain, title=title:
+             plot_trajectories(ms, terrain, path, title))
     if any(len(m.status_returns) for m in missions):
-        plots.append(str(plot_returns(missions, start_ns, out / "true_return.png")))
+        draw("true_return.png", lambda path: plot_returns(missions, start_ns, path))
     if messages.get(names.TOPIC_POSTERIOR):
         post = messages[names.TOPIC_POSTERIOR][-1].msg
         terrain = terrain_from_msg(terrains[-1].msg) if terrains else None
-        plots.append(str(plot_posterior(post, out / "posterior.png", terrain, _posterior_map(messages, post))))
+        draw("posterior.png", lambda path: plot_posterior(post, path, terrain, _posterior_map(messages, post)))
     if rounds:
-        plots.append(str(plot_query_rounds(rounds, rounds_terrain, out / "query_rounds.png")))
-    return plots
+        draw("query_rounds.png", lambda path: plot_query_rounds(rounds, rounds_terrain, path))
+    return written, errors
 
 
 def _posterior_map(messages: dict[str, list[BagMessage]], post: Any) -> Any:
@@ -156,6 +170,9 @@ def _mission_row(m: Mission, start_ns: int) -> dict[str, Any]:
         "steps": m.steps,
         "horizon": m.horizon,
         "done": m.done,
+        "stopped": m.stopped,
+        "end": m.end,
+        "outcome": m.outcome,
         "touched_lava": m.touched_lava,
         "reached_target": m.reached_target,
         "true_return": m.true_return,

@@ -17,8 +17,10 @@ its plan (or first status) to the next mission's start. A bag without ``/rob/sta
 one mission per ``/plan`` (plans only, no outcome).
 
 Also here: the small decoders the analysis needs (``terrain_from_msg``, ``path_xy``,
-``odom_xy``) and ``label_statistics`` (per plan label: runs, lava and target
-fractions, mean true return).
+``odom_xy``), ``label_statistics`` (per plan label: runs, lava and target
+fractions, mean true return) and ``drive_outcome`` (what one drive did, in words: a goal that
+"succeeded" may have left Rob where he started). A mission whose final status says ``stopped``
+(``/rob/stop``: the navigator's cancel) is ``cancelled``, not ``done``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ __all__ = [
     "Mission",
     "Terrain",
     "missions_from_messages",
+    "drive_outcome",
     "label_statistics",
     "latest_before",
     "terrain_from_msg",
@@ -175,6 +178,7 @@ class Mission:
     steps: int = 0
     horizon: int = 0
     done: bool = False
+    stopped: bool = False
     touched_lava: bool = False
     reached_target: bool = False
     true_return: float = math.nan
@@ -206,6 +210,35 @@ class Mission:
         """Cell changes along Rob's executed cells (stays not counted)."""
         cells = self.executed_cells
         return sum(1 for a, b in zip(cells, cells[1:]) if a != b)
+
+    @property
+    def end(self) -> str:
+        """How the drive ended: ``cancelled`` (stopped before the plan's end), ``done`` or ``running``
+        (no final status in the bag); ``-`` without any status."""
+        if not self.executed_cells:
+            return "-"
+        return "cancelled" if self.stopped else "done" if self.done else "running"
+
+    @property
+    def outcome(self) -> str:
+        """:func:`drive_outcome` of the mission (``-`` without any status)."""
+        if not self.executed_cells:
+            return "-"
+        return drive_outcome(touched_lava=self.touched_lava, reached_target=self.reached_target,
+                             moves=self.executed_moves)
+
+
+def drive_outcome(*, touched_lava: bool | None, reached_target: bool | None, moves: int) -> str:
+    """What one drive did, in words: ``touched lava`` (``touched lava, reached the target`` when
+    both), ``reached the target``, ``stayed put`` (Rob never left his start cell: ``moves`` is 0),
+    else ``moved N cell(s), reached no target``. ``None`` flags (not judged) count as False."""
+    if touched_lava:
+        return "touched lava, reached the target" if reached_target else "touched lava"
+    if reached_target:
+        return "reached the target"
+    if moves <= 0:
+        return "stayed put"
+    return f"moved {moves} cell{'s' if moves != 1 else ''}, reached no target"
 
 
 def _segment_statuses(statuses: Sequence[Logged]) -> list[list[Logged]]:
@@ -266,6 +299,7 @@ def _status_missions(statuses: Sequence[Logged], plans: Sequence[Logged]) -> lis
             steps=int(last.step),
             horizon=int(last.horizon),
             done=bool(last.done),
+            stopped=bool(getattr(last, "stopped", False)),  # older bags have no `stopped`
             touched_lava=bool(last.touched_lava),
             reached_target=bool(last.reached_target),
             true_return=float(last.true_return),

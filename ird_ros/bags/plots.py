@@ -37,14 +37,16 @@ __all__ = ["terrain_rewards", "feature_map", "trajectories_figure", "plot_trajec
 _SHIFT = 0.1  # cells between the drawn lines of overlapping paths
 
 
-def _figure(width: float, height: float, nrows: int = 1, ncols: int = 1) -> tuple[Any, Any]:
-    """A figure with an Agg canvas (no pyplot state) and its axes grid (squeezed like pyplot's)."""
+def _figure(width: float, height: float, nrows: int = 1, ncols: int = 1, *, grid: bool = False) -> tuple[Any, Any]:
+    """A figure with an Agg canvas (no pyplot state) and its axes: one ``Axes`` for a 1 x 1 figure,
+    else (and always with ``grid``) an (nrows, ncols) array of them, so a panel loop over
+    ``axes.flat`` works for any number of panels, one included."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
-    return fig, fig.subplots(nrows, ncols, squeeze=nrows == ncols == 1)
+    return fig, fig.subplots(nrows, ncols, squeeze=not grid and nrows == ncols == 1)
 
 
 def _save(fig: Any, path: str | Path) -> Path:
@@ -236,7 +238,7 @@ def plot_query_rounds(rounds: list[Round], terrain: Terrain | None, path: str | 
     n = max(1, len(rounds))
     ncols = min(3, n)
     nrows = (n + ncols - 1) // ncols
-    fig, axes = _figure(4.2 * ncols, 4.2 * nrows + 0.6, nrows, ncols)
+    fig, axes = _figure(4.2 * ncols, 4.2 * nrows + 0.6, nrows, ncols, grid=True)
     res, (x0, y0) = (terrain.resolution, terrain.origin) if terrain is not None else (1.0, (0.0, 0.0))
     legend: list[tuple[str, str]] = []
     open_options = 0  # the most options of an open question

@@ -52,7 +52,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, dds_network, ros_env
-from ird_ros.graph.nodes import NODES, PARAMS_FILE, RECORDER_SPEC, NodeSpec
+from ird_ros.graph.nodes import NODES, RECORDER_SPEC, NodeSpec
 from ird_ros.launch.events import (
     OutputChoice,
     OutputMode,
@@ -60,6 +60,7 @@ from ird_ros.launch.events import (
     check_max_retries,
     parse_output_mode,
 )
+from ird_ros.resources import graph_params
 
 __all__ = [
     "LaunchError",
@@ -67,6 +68,7 @@ __all__ = [
     "PlannedNode",
     "DomainRequest",
     "plan_launch",
+    "with_viz_port",
     "default_params_file",
     "read_params_sections",
     "REPO_ROOT",
@@ -76,6 +78,8 @@ __all__ = [
 ]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
+"""The folder holding the ``ird_ros`` package (the checkout, or site-packages when installed):
+put on the children's PYTHONPATH so they import the same copy."""
 RECORDER = names.NODE_RECORDER
 LAUNCHER_SECTION = "launcher"
 LAUNCHER_DEFAULTS: Mapping[str, Any] = MappingProxyType(
@@ -90,8 +94,9 @@ class LaunchError(RuntimeError):
 
 
 def default_params_file() -> Path:
-    """The graph's params file in this checkout (``ird_ros.graph.PARAMS_FILE``)."""
-    return REPO_ROOT / PARAMS_FILE
+    """The graph's params file (``ird_ros.graph.PARAMS_FILE``), package data of ``ird_ros``
+    (``ird_ros.resources``): found from any working directory, installed or in a checkout."""
+    return graph_params()
 
 
 def read_params_sections(path: str | os.PathLike[str] | None) -> dict[str, dict[str, Any]]:
@@ -252,7 +257,18 @@ def plan_launch(
         nodes=tuple(planned), params_file=params_file, respawn_delay=delay, respawn_max_retries=max_retries,
         record_dir=record_path, record_topics=topics, recorded_topics=recorded, domain=domain,
         log_dir=Path(log_dir) if log_dir is not None else None, output=output_mode,
-        cwd=Path(cwd) if cwd is not None else REPO_ROOT, base_env=MappingProxyType(base_env), notes=tuple(notes))
+        cwd=Path(cwd) if cwd is not None else Path.cwd(), base_env=MappingProxyType(base_env), notes=tuple(notes))
+
+
+def with_viz_port(specs: Sequence[NodeSpec] | None, port: int) -> list[NodeSpec]:
+    """Node specs (default: the graph's) whose viz node listens on ``port`` (``-p port:=N`` after
+    the params file; 0 = any free port, which ``/viz/status`` names). ``ValueError`` naming
+    ``--viz-port`` for a port outside 0..65535."""
+    if not 0 <= int(port) <= 65535:
+        raise ValueError(f"--viz-port: must be in 0..65535 (0 = any free port), got {port}")
+    arg = ("-p", f"port:={int(port)}")
+    return [replace(s, ros_args=(*s.ros_args, *arg)) if s.name == names.NODE_VIZ else s
+            for s in (specs if specs is not None else NODES)]
 
 
 def _params_file(params: str | os.PathLike[str] | None) -> Path | None:

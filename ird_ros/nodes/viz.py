@@ -7,18 +7,24 @@ the designer page's port; an address other than loopback logs a warning).
 
 It subscribes with the graph's QoS (``names.qos_for``) to ``/world/terrain``, ``/terrain/classes``,
 ``/world/test_features``, ``/terrain/features``, ``/ird/posterior``, ``/ird/risk_map``, ``/plan``,
-``/ird/plan_info``, ``/odom`` and ``/ird/queries``, and publishes on the channels of
+``/ird/plan_info``, ``/odom``, ``/rob/status`` and ``/ird/queries``, and publishes on the channels of
 :data:`ird_ros.viz.CHANNELS`: the terrain (ground truth and perceived) and the risk map as
 Grids, the plans (``/plan`` labelled by the ``/ird/plan_info`` with the same stamp) and Rob (pose
-and trail) as SceneUpdates, the trail as PosesInFrame, the posterior per terrain and the
-designer's open question as JSON. What is drawn is computed by the ROS-free :mod:`ird_ros.viz.scene`.
+and trail) as SceneUpdates, the trail as PosesInFrame, the posterior per terrain, the
+designer's open question and Rob's status (driving, done or stopped; what he reached) as JSON.
+What is drawn is computed by the ROS-free :mod:`ird_ros.viz.scene`.
 Once the server listens it publishes the latched ``/viz/status`` (std_msgs/String, JSON ``{"url",
 "host", "port", "channels"}``): the launcher's readiness, and how a client learns the port.
 
-Invariants: a new world (a ``/world/terrain`` with a later stamp) forgets the plans, the trail and
-the query records stamped before it; a plan is shown once both its path and its info arrived;
-a bad message is logged and ignored, never fatal. A port that is taken (or an address that cannot
-be bound) stops the node at start-up (``cannot start: ...``, exit code 2).
+Invariants: a new world (a ``/world/terrain`` with a later stamp) forgets the plans, the trail,
+the posterior and the query records stamped before it (the posterior and query channels then say
+"new world: no posterior yet" / "no question yet"), and a posterior stamped before the current
+world is ignored; a plan is shown once both its path and its info arrived. Every callback runs in
+``ird_ros.runtime.guard``'s guard (a ``GuardedNode``): a bad message is logged and ignored, never
+fatal; a stamp before the epoch is shown as 0. A port that is taken (or an address that cannot
+be bound) stops the node at start-up (``cannot start: port: ...``, exit code 2), naming
+``--viz-port``. Browsers' pages are kept out by the gate (``ird_ros.viz.gate``): ``Host`` must be
+loopback while bound to loopback, ``Origin`` loopback or one of ``allowed_origins``.
 """
 
 from __future__ import annotations
@@ -28,25 +34,30 @@ from collections import OrderedDict
 from typing import Any
 
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
-from rclpy.node import Node
 from std_msgs.msg import String
 
-from ird_msgs.msg import FeatureGrid, PlanInfo, QueryRecord, RewardPosterior, TerrainGrid
+from ird_msgs.msg import FeatureGrid, PlanInfo, QueryRecord, RewardPosterior, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
+from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import StartupError, exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
 from ird_ros.stamps import stamp_key, stamp_ns
 from ird_ros.viz import (
     CHANNELS,
+    DEFAULT_ALLOWED_ORIGINS,
     DEFAULT_PORT,
     LiveView,
     RobTrail,
+    no_posterior,
+    no_query,
     plan_line,
+    port_in_use_message,
     posterior_by_terrain,
     query_state,
     risk_layer,
+    rob_status_state,
     terrain_layer,
 )
 
@@ -58,6 +69,9 @@ PARAMETERS: dict[str, Param] = {
     "port": Param(DEFAULT_PORT, "Live view port (0 = any free port; not 8765, the designer page's)",
                   min_value=0, max_value=65535, read_only=True),
     "trail_length": Param(200, "Poses of Rob's trail kept and shown", min_value=1, max_value=100000, read_only=True),
+    "allowed_origins": Param(list(DEFAULT_ALLOWED_ORIGINS),
+                             "Origin headers allowed besides loopback ones (web apps; \"*\" = any); a request "
+                             "without Origin (desktop apps, scripts) is allowed", read_only=True),
 }
 
 FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
@@ -66,19 +80,23 @@ FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAI
 _PENDING = 16  # unmatched /plan or /ird/plan_info messages kept
 
 
-class VizNode(Node):
+class VizNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_VIZ, **kwargs)
         p = declare_all(self, PARAMETERS)
+        origins = [str(o) for o in p["allowed_origins"] if str(o).strip()]
         try:
-            self.view = LiveView(str(p["host"]), int(p["port"]), logger=self.get_logger())
-        except RuntimeError as exc:  # foxglove's FoxgloveError: the port is taken, the address unknown
-            raise StartupError(f"live view on {p['host']}:{p['port']}: {exc}") from None
+            self.view = LiveView(str(p["host"]), int(p["port"]), logger=self.get_logger(), allowed_origins=origins)
+        except (OSError, RuntimeError) as exc:  # the port is taken, the address unknown (foxglove: RuntimeError)
+            raise StartupError(port_in_use_message(str(p["host"]), int(p["port"]), exc)) from None
         self.trail = RobTrail(int(p["trail_length"]))
         self.terrain: conv.TerrainGridData | None = None
         self.terrain_ns = 0
         self.feature_maps: dict[str, conv.FeatureGridData] = {}
         self.posterior: RewardPosterior | None = None
+        self._rob_plan: tuple[int, int] | None = None  # plan stamp of the drive /rob/status reports
+        self._rob_start: tuple[int, int] | None = None  # Rob's first cell of that drive
+        self._rob_moved = False
         self.records: list[QueryRecord] = []
         self._paths: OrderedDict[tuple[int, int], Path] = OrderedDict()
         self._infos: OrderedDict[tuple[int, int], PlanInfo] = OrderedDict()
@@ -93,6 +111,7 @@ class VizNode(Node):
         sub(Path, names.TOPIC_PLAN, self._on_path, names.qos_for(names.TOPIC_PLAN))
         sub(PlanInfo, names.TOPIC_PLAN_INFO, self._on_info, names.qos_for(names.TOPIC_PLAN_INFO))
         sub(Odometry, names.TOPIC_ODOM, self._on_odom, names.qos_for(names.TOPIC_ODOM))
+        sub(RobStatus, names.TOPIC_ROB_STATUS, self._on_rob_status, names.qos_for(names.TOPIC_ROB_STATUS))
         sub(QueryRecord, names.TOPIC_QUERIES, self._on_record, names.qos_for(names.TOPIC_QUERIES))
         # Last: the status says the server listens (the launcher's readiness), so clients may connect.
         status_qos = names.qos_for(names.TOPIC_VIZ_STATUS)
@@ -130,7 +149,12 @@ class VizNode(Node):
         if self.trail.stamp_ns < self.terrain_ns:
             self.trail = RobTrail(self.trail.length)
         self.records = [r for r in self.records if stamp_ns(r.header.stamp) >= self.terrain_ns]
+        if self.posterior is not None and stamp_ns(self.posterior.header.stamp) < self.terrain_ns:
+            self.posterior = None  # the previous world's
+            self.view.show_json("posterior", no_posterior(self.terrain_ns))
         self._show_posterior()
+        if not self.records and self.view.latest("query") is not None:
+            self.view.show_json("query", no_query(self.terrain_ns))
         self._show_query()
 
     def _on_classes(self, msg: TerrainGrid) -> None:
@@ -163,6 +187,8 @@ class VizNode(Node):
     # ------------------------------------------------------------------ posterior
 
     def _on_posterior(self, msg: RewardPosterior) -> None:
+        if stamp_ns(msg.header.stamp) < self.terrain_ns:
+            return  # computed before the current world: the previous world's
         self.posterior = msg
         self._show_posterior()
 
@@ -222,6 +248,17 @@ class VizNode(Node):
         self.trail.add(pose.position.x, pose.position.y, pose.orientation.z, pose.orientation.w,
                        stamp_ns(msg.header.stamp), max_step=1.5 * self.resolution)
         self.view.show_rob(self.trail, self.resolution, msg.header.frame_id or conv.MAP_FRAME)
+
+    def _on_rob_status(self, msg: RobStatus) -> None:
+        plan, cell = stamp_key(msg.plan_stamp), (int(msg.row), int(msg.col))
+        if plan != self._rob_plan or self._rob_start is None or int(msg.step) == 0:
+            self._rob_plan, self._rob_start, self._rob_moved = plan, cell, False  # a new drive
+        self._rob_moved |= cell != self._rob_start
+        self.view.show_json("rob_status", rob_status_state(
+            stamp_ns=stamp_ns(msg.header.stamp), plan_label=str(msg.plan_label), row=msg.row, col=msg.col,
+            terrain=str(msg.terrain), step=msg.step, horizon=msg.horizon, done=bool(msg.done),
+            stopped=bool(msg.stopped), touched_lava=bool(msg.touched_lava), reached_target=bool(msg.reached_target),
+            true_return=float(msg.true_return), moved=self._rob_moved))
 
     # ------------------------------------------------------------------ the designer's question
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from ird_ros.viz.foxglove_view import (
     CHANNELS,
+    DEFAULT_ALLOWED_ORIGINS,
     DEFAULT_PORT,
     GRID_CHANNELS,
     JSON_CHANNELS,
@@ -21,16 +22,20 @@ from ird_ros.viz.foxglove_view import (
     bind_warning,
     grid_message,
     line_primitive,
+    port_in_use_message,
 )
 from ird_ros.viz.scene import (
     GridLayer,
     Line,
     RobTrail,
+    no_posterior,
+    no_query,
     plan_kind,
     plan_line,
     posterior_by_terrain,
     query_state,
     risk_layer,
+    rob_status_state,
     terrain_layer,
 )
 
@@ -42,12 +47,17 @@ __all__ = [
     "POSES_CHANNELS",
     "SCENE_CHANNELS",
     "LiveView",
+    "DEFAULT_ALLOWED_ORIGINS",
     "bind_warning",
+    "port_in_use_message",
     "grid_message",
     "line_primitive",
     "GridLayer",
     "Line",
     "RobTrail",
+    "no_posterior",
+    "no_query",
+    "rob_status_state",
     "plan_kind",
     "plan_line",
     "posterior_by_terrain",

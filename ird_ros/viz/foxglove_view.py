@@ -2,25 +2,32 @@
 
 ROS-free: it imports ``foxglove`` (foxglove-sdk, which serves the Foxglove WebSocket protocol,
 subprotocol ``foxglove.sdk.v1``) and numpy. :class:`LiveView` owns one ``foxglove.Context`` and
-one server on ``host:port`` (loopback by default; any other address logs a warning: the server
-has no authentication).
+one server, reached through a :class:`ird_ros.viz.gate.Gate` on ``host:port`` (loopback by
+default; any other address logs a warning: the server has no authentication). The gate refuses
+a handshake whose ``Host`` is not loopback (while bound to loopback) or whose ``Origin`` is not
+allowed (loopback origins and ``allowed_origins``) with 403, then relays to the SDK's server on
+an ephemeral loopback port.
 
 Channels (:data:`CHANNELS`): Grid (protobuf ``foxglove.Grid``) for the ground-truth terrain, the
 perceived terrain and the risk map; SceneUpdate (protobuf ``foxglove.SceneUpdate``) for the plans
 (one line entity per plan label) and for Rob (a cube at its pose and its trail); PosesInFrame
-for Rob's trail as poses; JSON for the posterior per terrain and the designer's question.
+for Rob's trail as poses; JSON for the posterior per terrain, the designer's question and Rob's
+status.
 
 Invariants:
 
-- Every channel shows state: the latest message of each channel is kept and logged again to a
-  client when it subscribes (``on_subscribe``; the SDK has the subscription in place when it
-  calls it), so a client that connects late still sees the map, the plans and the posterior.
+- Every channel shows state: the latest message of each channel is kept and logged again to the
+  client that subscribes, and to that client only (``on_subscribe`` gives the client, whose id is
+  its sink id; the SDK has the subscription in place when it calls it), so a client that connects
+  late still sees the map, the plans and the posterior, and a new client costs the others nothing.
 - Logging is serialised by one lock: a re-log on subscribe never overtakes a newer message.
-- Messages are stamped with their ROS message's stamp; the log time is the wall clock now.
+- Messages are stamped with their ROS message's stamp; the log time is the wall clock now. A stamp
+  before the epoch (``sec < 0``: Foxglove's timestamps are unsigned) is shown as 0.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -49,11 +56,13 @@ from foxglove.messages import (
 )
 from foxglove.websocket import ServerListener
 
+from ird_ros.viz.gate import DEFAULT_ALLOWED_ORIGINS, Gate
 from ird_ros.viz.scene import RGBA, ROB_COLOR, GridLayer, Line, RobTrail, hex_rgba
-from ird_ros.web.server import is_loopback
+from ird_ros.web.limits import is_loopback
 
 __all__ = ["LiveView", "CHANNELS", "GRID_CHANNELS", "SCENE_CHANNELS", "JSON_CHANNELS", "POSES_CHANNELS",
-           "DEFAULT_PORT", "grid_message", "line_primitive", "bind_warning"]
+           "DEFAULT_PORT", "DEFAULT_ALLOWED_ORIGINS", "grid_message", "line_primitive", "bind_warning",
+           "port_in_use_message"]
 
 DEFAULT_PORT = 8766
 """The live view's port: not Foxglove's 8765, which the designer's web page uses."""
@@ -61,7 +70,7 @@ DEFAULT_PORT = 8766
 GRID_CHANNELS: dict[str, str] = {"terrain": "/viz/terrain", "perceived": "/viz/perceived", "risk": "/viz/risk_map"}
 SCENE_CHANNELS: dict[str, str] = {"plans": "/viz/plans", "rob": "/viz/rob"}
 POSES_CHANNELS: dict[str, str] = {"trail": "/viz/rob_trail"}
-JSON_CHANNELS: dict[str, str] = {"posterior": "/viz/posterior", "query": "/viz/query"}
+JSON_CHANNELS: dict[str, str] = {"posterior": "/viz/posterior", "query": "/viz/query", "rob_status": "/viz/rob_status"}
 CHANNELS: dict[str, str] = GRID_CHANNELS | SCENE_CHANNELS | POSES_CHANNELS | JSON_CHANNELS
 """Every channel of the live view: key -> Foxglove topic."""
 
@@ -72,7 +81,13 @@ _NUMERIC = {"uint8": PackedElementFieldNumericType.Uint8, "int8": PackedElementF
 _IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
 
 
+_MAX_STAMP_NS = (2**32 - 1) * 1_000_000_000 + 999_999_999
+
+
 def _stamp(ns: int) -> Timestamp:
+    """A stamp in ns as a Foxglove Timestamp (unsigned seconds): one before the epoch is 0, one
+    beyond 2**32 s the largest."""
+    ns = min(max(int(ns), 0), _MAX_STAMP_NS)
     return Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
 
 
@@ -113,15 +128,22 @@ def bind_warning(host: str) -> str | None:
             "mission (the Foxglove WebSocket server has no authentication)")
 
 
+def port_in_use_message(host: str, port: int, exc: BaseException) -> str:
+    """What to say when the live view cannot listen on ``host:port`` (names how to pick another port)."""
+    return (f"port: cannot listen on {host}:{port} ({exc}); another live view (a second graph?) or program "
+            "may hold it: pick another port with --viz-port N (scripts/launch_graph.py, the demo; 0 = any "
+            "free port, printed) or the viz node's parameter port")
+
+
 class _Listener(ServerListener):
     """``foxglove.websocket.ServerListener`` (its no-op defaults for everything else): re-log a
-    channel's latest message to a new subscriber."""
+    channel's latest message to the client that subscribed."""
 
-    def __init__(self, on_subscribe: Callable[[str], None]) -> None:
+    def __init__(self, on_subscribe: Callable[[str, int], None]) -> None:
         self._on_subscribe = on_subscribe
 
     def on_subscribe(self, client: Any, channel: Any) -> None:
-        self._on_subscribe(str(channel.topic))
+        self._on_subscribe(str(channel.topic), int(client.id))
 
 
 class LiveView:
@@ -131,10 +153,13 @@ class LiveView:
         host, port: where to listen (port 0 = any free port; :attr:`port` says which).
         logger: object with ``info``/``warning`` (a ROS logger), or None.
         name: the server name shown in Foxglove.
+        allowed_origins: ``Origin`` values allowed besides loopback ones (``*``: any).
+
+    Raises ``OSError`` when ``host:port`` cannot be bound (:func:`port_in_use_message` says it).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *, logger: Any = None,
-                 name: str = "ird live view") -> None:
+                 name: str = "ird live view", allowed_origins: Any = DEFAULT_ALLOWED_ORIGINS) -> None:
         self.host = host
         self._lock = threading.Lock()
         self._latest: dict[str, Any] = {}  # topic -> last message logged (foxglove message or JSON dict)
@@ -152,9 +177,16 @@ class LiveView:
         warning = bind_warning(host)
         if warning is not None and logger is not None:
             logger.warning(warning)
-        self._server = foxglove.start_server(name=name, host=host, port=int(port), context=ctx,
+        self._server = foxglove.start_server(name=name, host="127.0.0.1", port=0, context=ctx,
                                              server_listener=_Listener(self._relog))
-        self.port = int(self._server.port)
+        refused = None if logger is None else (lambda text: logger.warning(f"live view refused a client: {text}"))
+        try:
+            self._gate = Gate(host, int(port), int(self._server.port), allowed_origins=tuple(allowed_origins),
+                              on_refused=refused)
+        except OSError:
+            self._server.stop()
+            raise
+        self.port = self._gate.port
         if logger is not None:
             logger.info(f"live view: Foxglove WebSocket on ws://{host}:{self.port}")
 
@@ -164,25 +196,31 @@ class LiveView:
 
     def stop(self) -> None:
         """Stop the server (clients are disconnected)."""
+        self._gate.stop()
         self._server.stop()
 
     # ------------------------------------------------------------------ logging
 
     def _log(self, topic: str, message: Any) -> None:
+        if topic in JSON_CHANNELS.values():
+            message = json.dumps(message).encode("utf-8")  # bytes: foxglove drops sink_id for a dict
         with self._lock:
             self._latest[topic] = message
             self._channels[topic].log(message, log_time=time.time_ns())
 
-    def _relog(self, topic: str) -> None:
+    def _relog(self, topic: str, client_id: int) -> None:
+        """The latest message of ``topic`` to the client ``client_id`` only (its sink id)."""
         with self._lock:
             message = self._latest.get(topic)
             if message is not None:
-                self._channels[topic].log(message, log_time=time.time_ns())
+                self._channels[topic].log(message, log_time=time.time_ns(), sink_id=client_id)
 
     def latest(self, key: str) -> Any:
-        """The last message logged on channel ``key`` (of :data:`CHANNELS`), or None."""
+        """The last message logged on channel ``key`` (of :data:`CHANNELS`; a JSON channel's as a
+        dict), or None."""
         with self._lock:
-            return self._latest.get(CHANNELS[key])
+            message = self._latest.get(CHANNELS[key])
+        return json.loads(message) if key in JSON_CHANNELS and message is not None else message
 
     def show_grid(self, key: str, layer: GridLayer) -> None:
         """Show a grid on ``key`` (terrain, perceived or risk)."""
@@ -213,5 +251,5 @@ class LiveView:
                                                         poses=pose_list))
 
     def show_json(self, key: str, data: dict[str, Any]) -> None:
-        """Show a JSON dict on ``key`` (posterior or query)."""
+        """Show a JSON dict on ``key`` (posterior, query or rob_status)."""
         self._log(JSON_CHANNELS[key], data)

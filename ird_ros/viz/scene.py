@@ -49,7 +49,10 @@ __all__ = [
     "plan_kind",
     "plan_line",
     "posterior_by_terrain",
+    "no_posterior",
     "query_state",
+    "no_query",
+    "rob_status_state",
 ]
 
 #: A colour as (r, g, b, a) floats in [0, 1].
@@ -325,3 +328,32 @@ def query_state(events: Sequence[QueryRecordData]) -> dict[str, Any] | None:
     out["open_ids"] = [ev.query_id for ev in waiting]
     out["events"] = len(events)
     return out
+
+
+def no_posterior(stamp_ns: int) -> dict[str, Any]:
+    """The posterior channel's state for a new world that has no posterior yet (the keys of
+    :func:`posterior_by_terrain`, empty): the previous world's posterior is not this world's."""
+    return {"stamp": stamp_ns / 1e9, "method": "", "converged": False, "num_samples": 0, "feature_source": None,
+            "terrains": {}, "features": {}, "note": "new world: no posterior yet"}
+
+
+def no_query(stamp_ns: int) -> dict[str, Any]:
+    """The query channel's state for a new world with no question yet."""
+    return {"stamp": stamp_ns / 1e9, "query_id": None, "event": None, "open": False, "open_ids": [], "events": 0,
+            "note": "new world: no question yet"}
+
+
+def rob_status_state(*, stamp_ns: int, plan_label: str, row: int, col: int, terrain: str, step: int, horizon: int,
+                     done: bool, stopped: bool, touched_lava: bool, reached_target: bool, true_return: float,
+                     moved: bool) -> dict[str, Any]:
+    """Rob's ``/rob/status`` as JSON, with ``state`` saying how the drive stands: ``driving``,
+    ``done`` or ``stopped`` (cancelled before the plan's end), and ``outcome``: ``touched lava``,
+    ``reached the target``, ``stayed put`` (no move yet, or none in the whole drive) or
+    ``moved`` (``moved``: whether any status of this drive had Rob off his first cell)."""
+    state = "stopped" if stopped else "done" if done else "driving"
+    outcome = ("touched lava" if touched_lava else "reached the target" if reached_target
+               else "moved" if moved else "stayed put")
+    return {"stamp": stamp_ns / 1e9, "plan_label": str(plan_label), "cell": [int(row), int(col)],
+            "terrain": str(terrain), "step": int(step), "horizon": int(horizon), "state": state,
+            "outcome": outcome, "touched_lava": bool(touched_lava), "reached_target": bool(reached_target),
+            "true_return": _number(float(true_return))}

@@ -26,9 +26,9 @@ OVERRIDES = {
                        Parameter("condition", value="side_effects")],
     names.NODE_VIZ: [Parameter("port", value=0)],
 }
-# Nodes that serve nothing of their own and are plain rclpy nodes (outside this change): their
-# project services and actions (none) are checked, their subscriptions are not.
-PLAIN_NODES = {names.NODE_VIZ}
+# Nodes that serve nothing of their own and are plain rclpy nodes: their project services and
+# actions (none) are checked, their subscriptions are not. None left: viz is guarded too (issue 43).
+PLAIN_NODES: set[str] = set()
 
 
 def _node_class(module_name: str) -> type:
