@@ -3,11 +3,12 @@
 # Sets up .venv (scripts/bootstrap.sh), picks a private ROS domain (or keeps an exported
 # ROS_DOMAIN_ID: scripts/lib/ros_env.sh), runs scripts/demo.py, which starts the graph in that one
 # domain and prints it with the line a second shell needs to attach.
-# --help / -h prints the usage below without setting anything up (a test holds it equal to the
-# options of ird_ros.apps.demo).
+# --help / -h prints the usage below without setting anything up (a test holds its options,
+# choices and defaults equal to the parser of ird_ros.apps.demo).
+# Relative paths (--world FILE, --out DIR) are taken from the directory you run it in: the script
+# does not change directory.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$ROOT"
 
 usage() {
   cat <<'EOF'
@@ -35,6 +36,8 @@ options:
   --no-survey           skip the 20-seed survey
   --viz                 also start the viz node (live view over the Foxglove protocol; its
                         ws:// URL is printed)
+  --viz-port PORT       with --viz: the live view's port (0 = any free port; without it 8766,
+                        the params file's)
 
 questions to the designer (after the IRD plan):
   --queries QUERIES     rounds of questions (0 = none: the plain mission)
@@ -42,8 +45,8 @@ questions to the designer (after the IRD plan):
                         who answers: the simulated designer node, or a person on the web page
   --num-options NUM_OPTIONS
                         paths per question (default 2)
-  --strategy {info_gain,random}
-                        how the options are chosen (default info_gain)
+  --strategy {evoi,max_regret,info_gain,random}
+                        how the options are chosen (default evoi)
   --designer-beta DESIGNER_BETA
                         simulated designer's rationality on the options' true returns
   --port PORT           web designer's port on 127.0.0.1 (default 8765)
@@ -57,16 +60,16 @@ for arg in "$@"; do
   esac
 done
 
-bash scripts/bootstrap.sh
+bash "$ROOT/scripts/bootstrap.sh"
 
 # shellcheck source=lib/ros_env.sh
-source scripts/lib/ros_env.sh
+source "$ROOT/scripts/lib/ros_env.sh"
 ird_ros_env
 trap '[[ -n "${IRD_ROS_LOG_TMP:-}" ]] && rm -rf "$IRD_ROS_LOG_TMP"' EXIT
 # the demo prints the domain (this shell's ROS_DOMAIN_ID) once, with the line to attach to it
 
 set +e
-.venv/bin/python scripts/demo.py "$@"
+"$ROOT/.venv/bin/python" "$ROOT/scripts/demo.py" "$@"
 rc=$?
 set -e
 exit "$rc"

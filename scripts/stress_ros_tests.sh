@@ -5,12 +5,39 @@
 # domain, and stops at the first failing run. Prints one line per run (exit code, passed/failed
 # counts, minutes) and a final verdict; each run's full output is kept in $STRESS_LOG_DIR
 # (default: a new folder under /tmp). The busy processes are stopped on exit, however it ends.
+# --help / -h prints the usage and starts nothing; RUNS must be a positive whole number.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$ROOT"
 
-runs="${1:-10}"
-shift || true
+usage() {
+  cat <<'EOF'
+usage: bash scripts/stress_ros_tests.sh [RUNS] [pytest arguments]
+
+Runs the ROS tests (bash scripts/test.sh tests/ros) RUNS times in a row (default 10) with one
+busy process per core, each run in a fresh private ROS domain; stops at the first failing run.
+Each run's output is kept in $STRESS_LOG_DIR (default: a new folder under /tmp).
+
+  -h, --help    show this help and exit (nothing is started)
+EOF
+}
+
+for arg in "$@"; do
+  case "$arg" in
+    -h|--help) usage; exit 0 ;;
+    --) break ;;
+  esac
+done
+
+runs=10
+if [[ $# -gt 0 && "$1" != -* ]]; then
+  runs="$1"
+  shift
+fi
+if ! [[ "$runs" =~ ^[1-9][0-9]*$ ]]; then
+  echo "stress_ros_tests.sh: RUNS must be a positive whole number, got '$runs' (see --help)" >&2
+  exit 2
+fi
+cd "$ROOT"
 log_dir="${STRESS_LOG_DIR:-$(mktemp -d /tmp/ird_stress.XXXXXX)}"
 mkdir -p "$log_dir"
 

@@ -63,8 +63,8 @@ def test_rounds_table_has_a_row_per_plan_with_the_answer() -> None:
                             _outcome("IRD", options[0], ret=0.3), rounds).splitlines()
     assert len(lines) == 1 + 2 + len(rounds)
     assert lines[3].split()[:5] == ["IRD", "after", "round", "1", "0.457"]
-    assert "0 of 2 (lava 0, gold 2, target 0)" in lines[3]
-    assert "1 of 2 (lava 1, gold 0, target 0)" in lines[4]
+    assert "A of 2 (lava 0, gold 2, target 0)" in lines[3]  # options by letter, as on the designer's page
+    assert "B of 2 (lava 1, gold 0, target 0)" in lines[4]
     # lava, target, gold, true return: the last four columns.
     assert lines[3].split()[-4:] == ["no", "no", "yes", "6.10"]
     assert lines[4].split()[-4:] == ["yes", "yes", "no", "-9.80"]

@@ -8,10 +8,13 @@ before the server stops, and a Gaussian-feature world's posterior shown per terr
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+import gc
 import json
 import logging
 import socket
 import threading
+import time
 import urllib.error
 import urllib.request
 from typing import Any, Iterator
@@ -572,3 +575,157 @@ def test_unknowable_training_cells_are_unknown() -> None:
                                                 other) == terrain_view.UNKNOWN)
     # A test map of other layers tells nothing.
     assert np.all(terrain_view.training_classes(train, test[..., :2], inst.test_labels) == terrain_view.UNKNOWN)
+
+
+# ---------------------------------------------------------------------- sockets that never read (issue 43)
+
+BIG_WORLD = {"height": 250, "width": 250, "class_names": WORLD["class_names"],
+             "classes": [[(r * 7 + c) % 4 for c in range(250)] for r in range(250)], "start": [0, 0], "stamp": 1.0}
+
+
+def _never_retrieved(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "never retrieved" in r.getMessage()]
+
+
+def _pending_bytes(web: WebDesigner) -> list[int]:
+    """Bytes each open socket's stream still has to send (Tornado's write buffer)."""
+    out = []
+    for sock in list(web._sockets):
+        conn = sock.ws_connection
+        stream = None if conn is None else conn.stream
+        out.append(0 if stream is None else len(stream._write_buffer))
+    return out
+
+
+def _on_loop(web: WebDesigner, fn: Any) -> Any:
+    """Run ``fn()`` on the server's event loop and return its result (the loop has handled
+    everything scheduled before)."""
+    assert web._loop is not None
+    done: concurrent.futures.Future = concurrent.futures.Future()
+    web._loop.call_soon_threadsafe(lambda: done.set_result(fn()))
+    return done.result(30.0)
+
+
+def test_a_socket_that_never_reads_holds_one_state_and_its_close_logs_no_traceback(
+        web: WebDesigner, caplog: pytest.LogCaptureFixture) -> None:
+    """A page that stops reading must not make the server queue every state for it (memory), and
+    its pending writes, failed by the close, must not each log an unretrieved-task traceback."""
+    caplog.set_level(logging.ERROR)
+    web.show_world(BIG_WORLD)
+    size = len(web.state_json())
+    pushes = 150  # about 28 MB in all: more than the kernel's socket buffers hold
+
+    async def scenario() -> list[int]:
+        url = web.url.replace("http", "ws") + "ws"
+        conn = await tornado.websocket.websocket_connect(url)  # reads nothing from here on
+        for i in range(pushes):
+            web.show_posterior({"feature_names": ["a"], "mean": [float(i)], "std": [0.0]}, None)
+        pending = await asyncio.get_running_loop().run_in_executor(None, _on_loop, web,
+                                                                   lambda: _pending_bytes(web))
+        conn.stream.socket.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+        conn.stream.close()  # a reset: the server's pending writes fail
+        return pending
+
+    pending = asyncio.run(asyncio.wait_for(scenario(), 60.0))
+    # the server notices the reset, drops the socket, and its loop moves on
+    deadline = time.monotonic() + 30.0
+    while _on_loop(web, lambda: len(web._sockets)) and time.monotonic() < deadline:
+        request(web, "/state")
+    assert _on_loop(web, lambda: len(web._sockets)) == 0
+    _on_loop(web, gc.collect)
+    gc.collect()
+    assert _never_retrieved(caplog) == []
+    assert request(web, "/state")[0] == 200
+    # at most the state being sent and the newest one waited for it (not every state since)
+    assert pending and max(pending) <= 2 * size + 1024, (pending, size)
+
+
+def test_open_pages_are_capped_and_an_extra_one_is_refused_with_a_reason(node: FakeNode) -> None:
+    server = WebDesigner("127.0.0.1", 0, node, max_sockets=3)
+    server.start()
+    server.show_world(WORLD)
+
+    async def scenario() -> tuple[list[Any], Any, Any, Any]:
+        url = server.url.replace("http", "ws") + "ws"
+        conns = [await tornado.websocket.websocket_connect(url) for _ in range(3)]
+        states = [json.loads(await c.read_message()) for c in conns]
+        extra = await tornado.websocket.websocket_connect(url)
+        refused = await extra.read_message()
+        code, reason = extra.close_code, extra.close_reason
+        conns[0].close()
+        while _on_loop(server, lambda: len(server._sockets)) > 2:  # the server saw the close
+            await asyncio.sleep(0.01)
+        again = await tornado.websocket.websocket_connect(url)
+        state = json.loads(await again.read_message())
+        for c in [*conns[1:], again]:
+            c.close()
+        return states, refused, (code, reason), state
+
+    try:
+        states, refused, (code, reason), state = asyncio.run(asyncio.wait_for(scenario(), 30.0))
+    finally:
+        server.stop()
+    assert all(s["world"] == WORLD for s in states) and state["world"] == WORLD
+    assert refused is None and code == 1013 and "limit is 3" in reason, (code, reason)
+    with pytest.raises(ValueError, match="max_sockets"):
+        WebDesigner("127.0.0.1", 0, node, max_sockets=0)
+
+
+def test_the_page_shows_how_the_mission_ended(web: WebDesigner) -> None:
+    """Rob's final status and the navigator's goal outcome reach the page (GET /state and the
+    socket), through the designer node's ``mission_dict``."""
+    from types import SimpleNamespace
+
+    from ird_ros.nodes.designer import mission_dict
+
+    rob = SimpleNamespace(plan_label="ird_per_step", row=3, col=4, step=12, horizon=12, touched_lava=False,
+                          reached_target=True, true_return=8.2, stopped=False,
+                          header=SimpleNamespace(stamp=SimpleNamespace(sec=5, nanosec=0)))
+    assert mission_dict(None, None) is None
+    mission = mission_dict(rob, "succeeded")
+    assert mission is not None
+    assert mission["text"] == ("Rob finished plan ird_per_step (12 steps): no lava, reached a target, true return "
+                               "8.20; the navigator's last goal succeeded.")
+    stopped = mission_dict(SimpleNamespace(**{**vars(rob), "stopped": True, "step": 5}), "canceled")
+    assert stopped is not None and stopped["text"].startswith("Rob stopped plan ird_per_step at step 5 of 12")
+    assert request(web, "/state")[1]["mission"] is None
+    web.show_mission(mission)
+    state = request(web, "/state")[1]
+    assert state["mission"]["text"] == mission["text"] and state["mission"]["rob"]["reached_target"] is True
+    assert "mission" in (WEB_DIR / "app.js").read_text() and 'id="mission"' in (WEB_DIR / "index.html").read_text()
+
+
+def test_the_designer_node_forwards_the_last_goal_outcome_and_robs_final_status() -> None:
+    """``DesignerNode``'s handlers: only a terminal goal status and only Rob's final status count,
+    each goal is shown once (the latched status array repeats old goals)."""
+    from types import SimpleNamespace
+
+    from action_msgs.msg import GoalStatus, GoalStatusArray
+
+    from ird_msgs.msg import RobStatus
+    from ird_ros.nodes.designer import DesignerNode
+
+    shown: list[dict[str, Any]] = []
+    fake = SimpleNamespace(rob_final=None, goal_outcome=None, _goal_seen=set(),
+                           web=SimpleNamespace(show_mission=shown.append))
+    fake._show_mission = lambda: DesignerNode._show_mission(fake)
+
+    def status(uuid: int, code: int, sec: int) -> GoalStatus:
+        s = GoalStatus(status=code)
+        s.goal_info.goal_id.uuid = [uuid] * 16
+        s.goal_info.stamp.sec = sec
+        return s
+
+    running = GoalStatusArray(status_list=[status(1, GoalStatus.STATUS_EXECUTING, 1)])
+    DesignerNode._on_goal_status(fake, running)
+    DesignerNode._on_rob_status(fake, RobStatus(done=False, step=3, horizon=12))
+    assert shown == []
+    DesignerNode._on_goal_status(fake, GoalStatusArray(status_list=[status(1, GoalStatus.STATUS_SUCCEEDED, 1),
+                                                                    status(2, GoalStatus.STATUS_ABORTED, 2)]))
+    assert fake.goal_outcome == "aborted" and len(shown) == 1
+    DesignerNode._on_goal_status(fake, GoalStatusArray(status_list=[status(2, GoalStatus.STATUS_ABORTED, 2)]))
+    assert len(shown) == 1  # seen already
+    DesignerNode._on_rob_status(fake, RobStatus(done=True, plan_label="literal", step=12, horizon=12,
+                                                touched_lava=True, true_return=-90.5))
+    assert shown[-1]["text"] == ("Rob finished plan literal (12 steps): touched lava, no target, true return -90.50; "
+                                 "the navigator's last goal aborted.")

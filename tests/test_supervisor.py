@@ -565,3 +565,40 @@ def test_a_wait_ends_when_abort_raises_and_a_stalled_wait_says_what_was_seen(mak
     with pytest.raises(TimeoutError) as plain:
         launcher.wait_for_event("recovered", "n", timeout=0.2)
     assert "stalled" not in str(plain.value)
+
+
+# ---------------------------------------------------------------------- issue 43: start-up stops, output lines
+
+
+def test_a_child_not_ready_gets_unready_signal_first_and_ends_without_a_traceback(make) -> None:
+    """A Python child still importing (no handler of its own yet) that gets SIGINT prints a
+    KeyboardInterrupt traceback; the launcher's ``unready_signal=SIGTERM`` ends it silently."""
+    importing = "import time\nprint('importing', flush=True)\nwhile True:\n    time.sleep(0.05)\n"
+    sup = make(ProcessSpec("slow_import", py(importing)))
+    sup.wait_for_output("slow_import", "importing", timeout=30)
+    sup.stop_processes(["slow_import"], sigterm_timeout=5.0, sigkill_timeout=5.0, unready_signal=signal.SIGTERM)
+    sent = [e.signal for e in sup.events() if isinstance(e, SignalSent)]
+    assert sent == [signal.SIGTERM]
+    assert sup.wait_for_event("stopped", "slow_import").returncode == -signal.SIGTERM  # type: ignore[attr-defined]
+    output = sup.output("slow_import")
+    assert "Traceback" not in output and "KeyboardInterrupt" not in output, output
+
+
+def test_the_default_echo_writes_each_line_in_one_piece(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Lines from several threads are never glued: each line, newline included, is one write."""
+    import io
+
+    from ird_ros.launch import supervisor as sup_mod
+
+    writes: list[str] = []
+
+    class Recorder(io.StringIO):
+        def write(self, text: str) -> int:
+            writes.append(text)
+            return len(text)
+
+    monkeypatch.setattr(sys, "stdout", Recorder())
+    sup = Supervisor([ProcessSpec("x", py("pass"))])
+    sup._echo("[world] ready")
+    sup_mod.print_line("[launcher] node x stalled")
+    assert writes == ["[world] ready\n", "[launcher] node x stalled\n"]

@@ -46,6 +46,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as dt
+import itertools
 import json
 import multiprocessing
 import multiprocessing.pool
@@ -66,8 +67,7 @@ from ird_core.worlds import lavaland
 from ird_core.worlds.lavaland import LavalandInstance
 from ird_ros.apps.demo_mission import Mission, Results
 from ird_ros.apps.demo_rounds import outcome_text, rounds_table, save_rounds_figure
-
-REPO = Path(__file__).resolve().parents[2]
+from ird_ros.resources import graph_params
 
 #: The demo's default seed: the first one, and (with the default settings) one of the seeds 0-19 on
 #: which the literal plan walks into lava, the failure the paper is about (Section 1). The demo
@@ -94,10 +94,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--beta", type=float, default=None, help="designer rationality (default: the experiments')")
     p.add_argument("--num-samples", type=int, default=None, help="posterior samples (default: the experiments')")
     p.add_argument("--rate", type=float, default=10.0, help="Rob's speed, cells per second")
-    p.add_argument("--out", default=str(REPO / "out" / "demo"), help="output folder (a run folder is made inside)")
+    p.add_argument("--out", default=str(Path("out") / "demo"),
+                   help="output folder, from the working directory (a run folder is made inside)")
     p.add_argument("--no-survey", action="store_true", help="skip the 20-seed survey")
     p.add_argument("--viz", action="store_true",
                    help="also start the viz node (live view over the Foxglove protocol; its ws:// URL is printed)")
+    p.add_argument("--viz-port", type=int, default=None, metavar="PORT",
+                   help="with --viz: the live view's port (0 = any free port; without it 8766, the params file's)")
     q = p.add_argument_group("questions to the designer (after the IRD plan)")
     q.add_argument("--queries", type=int, default=0, help="rounds of questions (0 = none: the plain mission)")
     q.add_argument("--designer", default="simulated", choices=("simulated", "web"),
@@ -121,6 +124,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f"--num-options: must be >= 2, got {args.num_options}")
     if not 1 <= args.port <= 65535:
         p.error(f"--port: must be in 1..65535, got {args.port}")
+    if args.viz_port is not None and not (args.viz and 0 <= args.viz_port <= 65535):
+        p.error(f"--viz-port: needs --viz and a port in 0..65535 (0 = any free port), got {args.viz_port}")
     return args
 
 
@@ -141,13 +146,14 @@ class Setup:
 
 def write_params(run_dir: Path, args: argparse.Namespace, spec: TrialSpec) -> Path:
     """The graph's parameter file with the experiments' world and sampler settings."""
-    params = yaml.safe_load((REPO / "msgs_config" / "params" / "graph.yaml").read_text())
+    params = yaml.safe_load(graph_params().read_text())
     world = params["world"]["ros__parameters"]
     world.update(condition=args.condition, seed=args.seed, height=spec.size, width=spec.size,
                  horizon=spec.horizon, obs_dim=spec.obs_dim)
     params["inference"]["ros__parameters"].update(
         num_chains=spec.num_chains, warmup=spec.warmup, thin=spec.thin,
-        num_proxy_samples=spec.num_proxy_samples)
+        num_proxy_samples=spec.num_proxy_samples,
+        time_budget=0.0)  # no wall-clock stop: the iteration cap bounds the run, so the numbers do not depend on load
     if args.world is not None:
         for node in ("world", "perception"):
             params[node]["ros__parameters"]["world_file"] = str(args.world.resolve())
@@ -182,11 +188,26 @@ def mission_spec(args: argparse.Namespace) -> tuple[TrialSpec, str]:
     return dataclasses.replace(spec, condition=lavaland.FILE_CONDITION, world=str(args.world.resolve())), loaded.name
 
 
+def make_run_dir(out: str | Path, now: dt.datetime | None = None) -> Path:
+    """A new folder ``run-<time>`` in ``out`` (a relative ``out`` is taken from the working
+    directory); ``run-<time>-2``, ``-3``, ... when demos started in the same second took the name."""
+    base = Path(out).resolve()
+    base.mkdir(parents=True, exist_ok=True)
+    stamp = (now or dt.datetime.now()).strftime("run-%Y%m%d-%H%M%S")
+    for n in itertools.count(1):
+        run_dir = base / (stamp if n == 1 else f"{stamp}-{n}")
+        try:
+            run_dir.mkdir()  # atomic: of two demos, one gets each name
+        except FileExistsError:
+            continue
+        return run_dir
+    raise AssertionError("unreachable")
+
+
 def prepare(args: argparse.Namespace, spec: TrialSpec, scene: str) -> Setup:
     """The run folder with the graph's parameter file; the world node's instance (its ground truth)."""
     inst = trial_instance(spec)  # the world node builds (or loads) the same instance
-    run_dir = Path(args.out) / dt.datetime.now().strftime("run-%Y%m%d-%H%M%S")
-    run_dir.mkdir(parents=True, exist_ok=False)
+    run_dir = make_run_dir(args.out)
     return Setup(spec, inst, scene, run_dir, write_params(run_dir, args, spec))
 
 
@@ -243,6 +264,7 @@ class Survey:
               f"IRD touches lava on {ird_lava}/{n} and reaches a target on {ird_target}/{n}.")
         self._pool.close()
         self._pool.join()
+        self._pool = None
 
 
 # --------------------------------------------------------------------------- the graph
@@ -289,7 +311,10 @@ def run_graph(args: argparse.Namespace, setup: Setup, results: Results) -> None:
     from ird_ros.launch import GraphLauncher
 
     # the domain this shell exported (demo.sh's, kept by ird_ros_env), else a private lease: one id
-    with GraphLauncher(nodes=graph_nodes(args), params=setup.params, record_dir=setup.run_dir / "bag",
+    from ird_ros.launch.plan import with_viz_port
+
+    specs = with_viz_port(None, args.viz_port) if args.viz and args.viz_port is not None else None
+    with GraphLauncher(nodes=graph_nodes(args), specs=specs, params=setup.params, record_dir=setup.run_dir / "bag",
                        private_domain=not os.environ.get("ROS_DOMAIN_ID"), output="files",
                        log_dir=setup.run_dir / "logs") as graph:
         print_domain(graph, args)
@@ -349,26 +374,45 @@ def report_bag(setup: Setup) -> None:
 # --------------------------------------------------------------------------- main
 
 
+STOPPED_LINE = "[demo] stopped by Ctrl-C"
+
+
 def main(argv: list[str] | None = None) -> int:
     """The mission: set up, start the survey, run the graph and its client, report. Exit code 0,
-    1 if the graph did not start, 2 for an unreadable ``--world``, 130 after Ctrl-C."""
+    1 if the graph did not start, 2 for an unreadable ``--world``, 130 after Ctrl-C (wherever it
+    comes: one line, never a traceback; the graph and the survey are stopped first)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print(f"\n{STOPPED_LINE}", file=sys.stderr, flush=True)
+        return 130
+
+
+def _main(argv: list[str] | None) -> int:
     args = parse_args(argv)
-    from rclpy.executors import ExternalShutdownException  # after --help: works before the venv is complete
-
-    from ird_ros.launch import LaunchError
-
     try:
         spec, scene = mission_spec(args)
     except ValueError as exc:
         print(f"[demo] {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # while loading --world: nothing was started
-        print("\n[demo] stopped by Ctrl-C", file=sys.stderr)
+        print(f"\n{STOPPED_LINE}", file=sys.stderr)
         return 130
     setup = prepare(args, spec, scene)
     t_start = time.monotonic()
     print_header(args, setup)
     background = Survey(None if args.no_survey else spec)
+    try:
+        return _run(args, setup, scene, background, t_start)
+    finally:
+        background.cancel()  # after Ctrl-C or an error; a no-op once the survey was reported
+
+
+def _run(args: argparse.Namespace, setup: Setup, scene: str, background: Survey, t_start: float) -> int:
+    from rclpy.executors import ExternalShutdownException  # after --help: works before the venv is complete
+
+    from ird_ros.launch import LaunchError
+
     results = Results()
     interrupted = False
     try:
@@ -379,7 +423,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):
         interrupted = True
-        print("\n[demo] stopped by Ctrl-C: the graph was stopped and the bag closed.", flush=True)
+        print(f"\n{STOPPED_LINE}: the graph was stopped and the bag closed.", flush=True)
         background.cancel()
     pictures = report_mission(args, setup, results)
     report_bag(setup)

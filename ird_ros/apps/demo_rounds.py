@@ -23,6 +23,7 @@ from matplotlib.lines import Line2D
 from ird_core import style
 from ird_core.render import draw_path, draw_risk, draw_terrain, halo_effects, terrain_handles
 from ird_core.worlds.terrain import NUM_TERRAINS, TERRAIN_NAMES, Terrain
+from ird_ros.web.page_state import option_letter
 
 __all__ = ["Outcome", "RoundResult", "terrain_counts", "describe_counts", "rounds_table", "outcome_text",
            "rounds_figure", "save_rounds_figure", "PANEL_INCHES", "RISK_LABEL"]
@@ -113,7 +114,8 @@ def rounds_table(literal: Outcome, before: Outcome, rounds: Sequence[RoundResult
     rows.append(row("literal (proxy)", "-", "-", literal))
     rows.append(row("IRD, no questions", "-", "-", before))
     for r in rounds:
-        answer = f"{r.chosen} of {len(r.options)} ({describe_counts(r.option_counts[r.chosen])})"
+        # options by letter, as the designer's page and log name them
+        answer = f"{option_letter(r.chosen)} of {len(r.options)} ({describe_counts(r.option_counts[r.chosen])})"
         rows.append(row(f"IRD after round {r.index}", f"{r.information_gain:.3f}", answer, r.plan))
     return "\n".join(rows)
 

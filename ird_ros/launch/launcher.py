@@ -59,13 +59,24 @@ ephemeral port range.
 
 Stopping (``stop()``, leaving the ``with`` block, or SIGINT/SIGTERM to the CLI): the nodes'
 process groups get SIGINT, then SIGTERM after 1.5 s, then SIGKILL after 2.5 s; the recorder
-then gets the same (its deadlines end at 4.5 s). Everything is gone within 5 s.
+then gets the same (its deadlines end at 4.5 s). Everything is gone within 5 s. A SIGINT or
+SIGTERM while the stop runs (a second Ctrl-C) kills every node's process group at once and ends
+the process (exit 130), whatever the stop was waiting for. A node not ready
+yet gets SIGTERM instead of the first SIGINT: it may still be importing its modules, before
+``ird_ros.runtime.node_main`` installs its handler, and SIGINT would print a ``KeyboardInterrupt``
+traceback (Ctrl-C during start-up, a readiness timeout); SIGTERM ends it silently, or cleanly
+once the handler runs.
+
+Longer than 450 lines: one class whose start, readiness, reports, status and stop (with its hard
+stop on a second signal) share the plan, the domain lease and the supervisor; split, each part
+would reach into the others' state.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import tempfile
 import threading
 import time
@@ -90,7 +101,7 @@ from ird_ros.launch.events import (
 )
 from ird_ros.launch.plan import RECORDER, LaunchError, LaunchPlan, plan_launch
 from ird_ros.launch.readiness import ReadinessMonitor
-from ird_ros.launch.supervisor import Supervisor
+from ird_ros.launch.supervisor import Supervisor, print_line
 
 __all__ = ["GraphLauncher", "Event"]
 
@@ -170,7 +181,7 @@ class GraphLauncher:
 
     def _adopt(self, plan: LaunchPlan, echo: Callable[[str], None] | None) -> None:
         self.plan = plan
-        self._echo = echo or (lambda line: print(line, flush=True))
+        self._echo = echo or print_line
         self._cond = threading.Condition(threading.RLock())
         self._lease: DomainLease | None = None
         self._log_tmp: tempfile.TemporaryDirectory | None = None
@@ -274,7 +285,7 @@ class GraphLauncher:
                 supervisor, self.plan.specs, self.domain_id, self._env,
                 skip_ready_topics=self.plan.skipped_ready_topics,
                 recorder=RECORDER if self.plan.has_recorder else None, recorded=self.plan.recorded_topics,
-                on_change=self._notify)
+                on_change=self._notify, on_note=self._say)
         monitor.start()
         return monitor
 
@@ -407,15 +418,49 @@ class GraphLauncher:
         if self._stopped:
             return {n: i.returncode for n, i in self._infos().items()}
         self._stopped = True
+        restore = self._interrupt_ends_the_stop()
+        try:
+            return self._stop()
+        finally:
+            restore()
+
+    def _interrupt_ends_the_stop(self) -> Callable[[], None]:
+        """While ``stop()`` runs (in the main thread), SIGINT (a second Ctrl-C: the first one usually
+        started the stop) and SIGTERM kill every node's process group with SIGKILL and end this
+        process at once, exit 130 (143), with one line on stderr; returns what restores the
+        previous handlers. The handler uses no lock and no thread: nothing in the stop can delay it.
+        """
+        if threading.current_thread() is not threading.main_thread():
+            return lambda: None
+        groups = [pid for pid in self.pids().values() if pid is not None]
+
+        def hard_stop(signum: int, _frame: object) -> None:
+            for pgid in groups:
+                with contextlib.suppress(OSError):
+                    os.killpg(pgid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                os.write(2, f"\n[launcher] {signal.Signals(signum).name} during the stop: killed the nodes' "
+                            f"process groups ({len(groups)}) and exited\n".encode())
+            os._exit(128 + signum)
+
+        previous = {sig: signal.signal(sig, hard_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+        def restore() -> None:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+        return restore
+
+    def _stop(self) -> dict[str, int | None]:
         t0 = time.monotonic()
         codes: dict[str, int | None] = {n: None for n in self.plan.names}
         if self._sup is not None:
             self._sup.stop_processes([n for n in self.plan.names if n != RECORDER], NODES_SIGTERM_AT,
-                                     NODES_SIGKILL_AT - NODES_SIGTERM_AT)
+                                     NODES_SIGKILL_AT - NODES_SIGTERM_AT, unready_signal=signal.SIGTERM)
             if self.plan.has_recorder:
                 kill_at = max(RECORDER_SIGKILL_AT - (time.monotonic() - t0), 0.5)
                 term_at = min(RECORDER_SIGTERM_AFTER, kill_at - 0.5)
-                self._sup.stop_processes([RECORDER], term_at, kill_at - term_at)
+                self._sup.stop_processes([RECORDER], term_at, kill_at - term_at, unready_signal=signal.SIGTERM)
         self.stop_duration = time.monotonic() - t0
         if self._monitor is not None:
             self._monitor.close()

@@ -28,17 +28,30 @@ expired on one side only; seen here under load in 1 of ~10 runs of ``tests/ros/t
 ``ping_timeout`` s and its parameter service is still not discovered, ``renew`` (given by the
 caller) replaces the pinging participant with a new one, which every node discovers afresh; at
 most once per ``ping_timeout`` s.
+
+A process of its own (``LivenessProcess``). The pings, their participant and the checker run in a
+child process, not in the launcher: a ping once blocked inside Fast DDS's shared-memory transport
+while holding the GIL, and froze the launcher for 60 minutes (supervisor, reports and its SIGINT
+handler included). The launcher's side only sends the children's states down a pipe and reads the
+answers without waiting (one request in flight); a probe process that has not answered for
+``hang_timeout`` s is killed (SIGKILL needs no cooperation) and started afresh, which the caller
+reports. Whatever the probe does, the launcher keeps running.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import signal
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterator, Mapping
 
 from ird_ros.launch.events import ChildInfo, ChildState
 
-__all__ = ["LivenessChecker", "Transition", "process_state", "STOPPED_STATES", "PING_PERIOD", "PING_TIMEOUT"]
+__all__ = ["LivenessChecker", "LivenessProcess", "Transition", "process_state", "STOPPED_STATES", "PING_PERIOD",
+           "PING_TIMEOUT", "HANG_TIMEOUT"]
 
 STOPPED_STATES = frozenset("Tt")
 """``/proc/<pid>/stat`` states of a process that does not run until continued."""
@@ -46,6 +59,8 @@ PING_PERIOD = 1.0
 """Seconds between pings of one node."""
 PING_TIMEOUT = 10.0
 """Seconds without an answered ping after which a running node counts as stalled."""
+HANG_TIMEOUT = 15.0
+"""Seconds without an answer from the probe process after which it is killed and started again."""
 
 
 def process_state(pid: int) -> str | None:
@@ -224,3 +239,194 @@ class LivenessChecker:
     def stalled(self) -> dict[str, float]:
         """Names of the children stalled now, with the monotonic time each was seen stalled."""
         return {n: w.stalled_at for n, w in self._watches.items() if w.stalled_at is not None}
+
+
+# ------------------------------------------------------------------------ participants (rclpy contexts)
+
+PING_NODE = "launcher_ping"
+
+
+@contextlib.contextmanager
+def _temp_env(values: Mapping[str, str]) -> Iterator[None]:
+    """``os.environ`` updated with ``values`` inside the block (rclpy.init reads ROS_* there)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _open_participant(name: str, domain_id: int, env: Mapping[str, str]) -> tuple[Any, Any, Any]:
+    """A node ``name`` in an rclpy context (a DDS participant) of its own, and its executor."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    ctx = Context()
+    keys = {k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR") if k in env}
+    with _temp_env(keys):
+        rclpy.init(context=ctx, domain_id=int(domain_id), signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node(name, context=ctx, start_parameter_services=False, enable_rosout=False)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    return ctx, node, executor
+
+
+def _close_participant(ctx: Any, node: Any, executor: Any) -> None:
+    with contextlib.suppress(Exception):
+        executor.shutdown(timeout_sec=1.0)
+    with contextlib.suppress(Exception):
+        node.destroy_node()
+    with contextlib.suppress(Exception):
+        ctx.try_shutdown()
+
+
+class PingParticipant:
+    """The liveness pings' node (``launcher_ping``) in a participant of its own, so that ``renew``
+    can replace it with a new participant (``ird_ros.launch.liveness``: renewal) without touching
+    the readiness probe's subscriptions and history. Not thread-safe: one thread uses it."""
+
+    def __init__(self, domain_id: int, env: Mapping[str, str]) -> None:
+        self._domain_id, self._env = domain_id, dict(env)
+        self._ctx, self.node, self._executor = _open_participant(PING_NODE, domain_id, env)
+
+    def spin(self, callbacks: int) -> None:
+        """Handle up to ``callbacks`` ready events (ping answers) without waiting."""
+        for _ in range(callbacks):
+            self._executor.spin_once(timeout_sec=0.0)
+
+    def renew(self) -> Any:
+        """Close this participant, open a new one; return its node."""
+        self.close()
+        self._ctx, self.node, self._executor = _open_participant(PING_NODE, self._domain_id, self._env)
+        return self.node
+
+    def close(self) -> None:
+        _close_participant(self._ctx, self.node, self._executor)
+
+
+# ------------------------------------------------------------------------ the probe's own process
+
+
+def serve(conn: Any, domain_id: int, env: Mapping[str, str], period: float, ping_timeout: float) -> None:
+    """The probe process: a ``LivenessChecker`` pinging from a ``PingParticipant`` of this process.
+    Each request is the children's ``{name: ChildInfo}`` (None: end); each answer is
+    ``(transitions, stalled, notes, renewals)``. Ctrl-C is the launcher's business: this process
+    ignores SIGINT (a terminal's Ctrl-C reaches it too) and ends when the launcher's end of the
+    pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.update(env)  # the graph's domain, DDS profile and log folder, before rclpy loads
+    pinger = PingParticipant(domain_id, env)
+    checker = LivenessChecker(pinger.node, renew=pinger.renew, period=period, ping_timeout=ping_timeout)
+    try:
+        while (infos := conn.recv()) is not None:
+            pinger.spin(len(infos))
+            changes = checker.check(infos)
+            stalled = checker.stalled()
+            conn.send((changes, stalled, {name: checker.describe(name) for name in stalled}, checker.renewals))
+    except (EOFError, OSError, KeyboardInterrupt):
+        pass  # the launcher closed the pipe or went away
+    finally:
+        pinger.close()
+
+
+class LivenessProcess:
+    """``LivenessChecker``'s calls, answered by a process of its own (see the module docstring).
+
+    ``check(infos)`` never waits: it returns the transitions of the last answer that came in (if
+    any) and sends the new states when no request is in flight. Args are ``LivenessChecker``'s;
+    ``hang_timeout``: seconds without an answer before the process is replaced; ``target``: the
+    process's function (``serve``; tests pass one that hangs); ``clock``: monotonic seconds.
+    """
+
+    def __init__(self, domain_id: int, env: Mapping[str, str], *, period: float = PING_PERIOD,
+                 ping_timeout: float = PING_TIMEOUT, hang_timeout: float = HANG_TIMEOUT,
+                 target: Callable[..., None] = serve, clock: Callable[[], float] = time.monotonic) -> None:
+        if not ping_timeout > period > 0.0:
+            raise ValueError(f"expected ping_timeout > period > 0, got {ping_timeout!r}, {period!r}")
+        if not hang_timeout > 0.0:
+            raise ValueError(f"hang_timeout must be > 0 s, got {hang_timeout!r}")
+        self._mp = multiprocessing.get_context("spawn")
+        self._args = (int(domain_id), dict(env), float(period), float(ping_timeout))
+        self.hang_timeout = float(hang_timeout)
+        self._target = target
+        self._clock = clock
+        self.restarts = 0
+        self.renewals = 0
+        self.hung: str | None = None  # why the last process was replaced (for the caller to report once)
+        self._stalled: dict[str, float] = {}
+        self._notes: dict[str, str] = {}
+        self._start()
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid
+
+    def _start(self) -> None:
+        parent, child = self._mp.Pipe()
+        self._proc = self._mp.Process(target=self._target, args=(child, *self._args), name="ird-liveness", daemon=True)
+        self._proc.start()
+        child.close()
+        self._conn = parent
+        self._asked_at: float | None = None
+        self._answered_at = self._clock()
+
+    def _replace(self, why: str) -> None:
+        self.close()
+        self.restarts += 1
+        self.hung = why
+        self._start()
+
+    def check(self, infos: Mapping[str, Any]) -> list[Transition]:
+        """The transitions the probe process reported since the last call; never blocks."""
+        now = self._clock()
+        changes: list[Transition] = []
+        if self._asked_at is not None:
+            try:
+                answered = self._conn.poll(0)
+                reply = self._conn.recv() if answered else None
+            except (EOFError, OSError):
+                self._replace(f"the liveness probe process (pid {self._proc.pid}) ended "
+                              f"(exit code {self._proc.exitcode})")
+                return changes
+            if reply is not None:
+                changes, self._stalled, self._notes, self.renewals = reply
+                self._asked_at, self._answered_at = None, now
+            elif now - self._asked_at >= self.hang_timeout:
+                self._replace(f"the liveness probe process (pid {self._proc.pid}) did not answer for "
+                              f"{now - self._asked_at:.1f} s (stuck, e.g. in the DDS transport): killed and "
+                              "started again")
+                return changes
+        if self._asked_at is None:
+            try:
+                self._conn.send(dict(infos))  # one request in flight: the pipe never fills, send never waits
+                self._asked_at = now
+            except (BrokenPipeError, OSError):
+                self._replace(f"the liveness probe process (pid {self._proc.pid}) ended "
+                              f"(exit code {self._proc.exitcode})")
+        return changes
+
+    def stalled(self) -> dict[str, float]:
+        """As ``LivenessChecker.stalled``, as of the probe's last answer."""
+        return dict(self._stalled)
+
+    def describe(self, name: str) -> str:
+        """As ``LivenessChecker.describe``, as of the probe's last answer."""
+        return self._notes.get(name, "not stalled at the probe's last answer")
+
+    def close(self) -> None:
+        """End the probe process (asked first; killed if it does not end within 2 s)."""
+        with contextlib.suppress(Exception):
+            self._conn.send(None)
+        self._proc.join(2.0)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(5.0)
+        with contextlib.suppress(Exception):
+            self._conn.close()

@@ -25,7 +25,10 @@ keeps the recorder's lag up to date after the recorder was ready, and watches ev
 child for stalls (``ird_ros.launch.liveness``: process stopped, or no answer to a parameter
 request), which it reports to the supervisor as ``ProcessStalled`` / ``ProcessRecovered`` events.
 The pings go from a second node, ``launcher_ping``, in a participant of its own
-(``PingParticipant``) that liveness may replace when DDS stops showing it a node.
+(``PingParticipant``) that liveness may replace when DDS stops showing it a node; that participant
+and the checks run in a process of their own (``ird_ros.launch.liveness.LivenessProcess``), so a
+ping stuck in the DDS transport cannot freeze the launcher; a probe process that stops answering
+is replaced and reported through ``on_note``.
 """
 
 from __future__ import annotations
@@ -36,33 +39,18 @@ import json
 import os
 import threading
 import time
-from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ird_ros.graph import names
 from ird_ros.graph.nodes import NodeSpec
 from ird_ros.launch.events import ChildInfo, ChildState, ProcessRecovered, ProcessStalled
-from ird_ros.launch.liveness import PING_PERIOD, PING_TIMEOUT, LivenessChecker
+from ird_ros.launch.liveness import (PING_NODE, PING_PERIOD, PING_TIMEOUT, LivenessProcess, PingParticipant,
+                                     _close_participant, _open_participant)
 from ird_ros.launch.supervisor import Supervisor
 
 __all__ = ["GraphProbe", "PingParticipant", "ReadinessMonitor", "PROBE_NODE", "PING_NODE"]
 
 PROBE_NODE = "launcher"
-PING_NODE = "launcher_ping"
-
-
-@contextlib.contextmanager
-def _temp_env(values: Mapping[str, str]) -> Iterator[None]:
-    """``os.environ`` updated with ``values`` inside the block (rclpy.init reads ROS_* there)."""
-    old = {k: os.environ.get(k) for k in values}
-    os.environ.update(values)
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 class GraphProbe:
@@ -197,56 +185,6 @@ class GraphProbe:
         _close_participant(self._ctx, self._node, self._executor)
 
 
-def _open_participant(name: str, domain_id: int, env: Mapping[str, str]) -> tuple[Any, Any, Any]:
-    """A node ``name`` in an rclpy context (a DDS participant) of its own, and its executor."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
-
-    ctx = Context()
-    keys = {k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR") if k in env}
-    with _temp_env(keys):
-        rclpy.init(context=ctx, domain_id=int(domain_id), signal_handler_options=SignalHandlerOptions.NO)
-        node = rclpy.create_node(name, context=ctx, start_parameter_services=False, enable_rosout=False)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    return ctx, node, executor
-
-
-def _close_participant(ctx: Any, node: Any, executor: Any) -> None:
-    with contextlib.suppress(Exception):
-        executor.shutdown(timeout_sec=1.0)
-    with contextlib.suppress(Exception):
-        node.destroy_node()
-    with contextlib.suppress(Exception):
-        ctx.try_shutdown()
-
-
-class PingParticipant:
-    """The liveness pings' node (``launcher_ping``) in a participant of its own, so that ``renew``
-    can replace it with a new participant (``ird_ros.launch.liveness``: renewal) without touching
-    the readiness probe's subscriptions and history. Not thread-safe: one thread uses it."""
-
-    def __init__(self, domain_id: int, env: Mapping[str, str]) -> None:
-        self._domain_id, self._env = domain_id, dict(env)
-        self._ctx, self.node, self._executor = _open_participant(PING_NODE, domain_id, env)
-
-    def spin(self, callbacks: int) -> None:
-        """Handle up to ``callbacks`` ready events (ping answers) without waiting."""
-        for _ in range(callbacks):
-            self._executor.spin_once(timeout_sec=0.0)
-
-    def renew(self) -> Any:
-        """Close this participant, open a new one; return its node."""
-        self.close()
-        self._ctx, self.node, self._executor = _open_participant(PING_NODE, self._domain_id, self._env)
-        return self.node
-
-    def close(self) -> None:
-        _close_participant(self._ctx, self.node, self._executor)
-
-
 class ReadinessMonitor:
     """Marks the supervisor's starting children ready when the probe finds nothing missing.
 
@@ -258,6 +196,8 @@ class ReadinessMonitor:
         recorder: the recorder's name, if one runs, and ``recorded``: the topics it must record.
         on_change: called (without locks held) after every check that may change an answer.
         ping_period, ping_timeout: of the liveness checks (``ird_ros.launch.liveness``).
+        on_note: receives a line when the liveness probe's process was replaced.
+        liveness_target: the probe process's function (default ``ird_ros.launch.liveness.serve``).
     """
 
     def __init__(
@@ -273,6 +213,8 @@ class ReadinessMonitor:
         on_change: Callable[[], None] = lambda: None,
         ping_period: float = PING_PERIOD,
         ping_timeout: float = PING_TIMEOUT,
+        on_note: Callable[[str], None] = lambda text: None,
+        liveness_target: Callable[..., None] | None = None,
     ) -> None:
         self._sup = supervisor
         self._specs = dict(specs)
@@ -281,9 +223,9 @@ class ReadinessMonitor:
         self._recorded = list(recorded)
         self._on_change = on_change
         self._probe = GraphProbe(domain_id, env, recorder_status=recorder is not None)
-        self._pinger = PingParticipant(domain_id, env)
-        self._liveness = LivenessChecker(self._pinger.node, renew=self._pinger.renew, period=ping_period,
-                                         ping_timeout=ping_timeout)
+        self._on_note = on_note
+        self._liveness = LivenessProcess(domain_id, env, period=ping_period, ping_timeout=ping_timeout,
+                                         **({} if liveness_target is None else {"target": liveness_target}))
         self._lock = threading.Lock()
         self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
         self._lag: list[str] = []
@@ -319,7 +261,6 @@ class ReadinessMonitor:
             while not self._closing.is_set():
                 self._probe.spin_once(0.05)
                 infos = self._sup.infos()
-                self._pinger.spin(len(infos))
                 self._check([i for i in infos.values() if i.state is ChildState.STARTING])
                 if not self._sup.stopping:
                     self._report_liveness(infos)
@@ -355,7 +296,11 @@ class ReadinessMonitor:
             self._on_change()
 
     def _report_liveness(self, infos: Mapping[str, ChildInfo]) -> None:
-        for change in self._liveness.check(infos):
+        changes = self._liveness.check(infos)
+        if self._liveness.hung is not None:
+            note, self._liveness.hung = self._liveness.hung, None
+            self._on_note(note)
+        for change in changes:
             if change.stalled:
                 self._sup.note(change.name, change.pid, ProcessStalled, reason=change.reason)
             else:
@@ -383,4 +328,4 @@ class ReadinessMonitor:
         if self._thread.is_alive():
             self._thread.join(2.0)
         self._probe.close()
-        self._pinger.close()
+        self._liveness.close()

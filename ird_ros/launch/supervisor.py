@@ -24,7 +24,13 @@ then stays ``exited`` (event ``ProcessGaveUp``). One that ends after ``stop_proc
 
 Stopping (``stop_processes(names, sigterm_timeout, sigkill_timeout)``): the process groups get
 SIGINT, SIGTERM ``sigterm_timeout`` s later, SIGKILL ``sigkill_timeout`` s after that; every
-signal sent is a ``SignalSent`` event.
+signal sent is a ``SignalSent`` event. ``unready_signal`` replaces the first SIGINT for children
+not ``ready`` yet: a Python process still importing its modules has no handler of its own, and
+SIGINT would print a ``KeyboardInterrupt`` traceback from wherever the import was, while SIGTERM's
+default action ends it silently (the launcher's nodes handle both alike once they run).
+
+Longer than 450 lines: spawning, output pumps, exit reports, respawns and the stop escalation all
+change the same children's states under one lock; apart, the lock would have to be shared.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ import os
 import queue
 import signal
 import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -47,7 +54,19 @@ from ird_ros.launch.events import (ChildInfo, ChildState, EventKind, OutputChoic
                                    ProcessStarted, SignalSent, parse_output_mode)
 from ird_ros.launch.process_groups import child_ended, child_preexec, group_alive
 
-__all__ = ["Supervisor"]
+__all__ = ["Supervisor", "print_line"]
+
+_PRINT_LOCK = threading.Lock()
+
+
+def print_line(line: str) -> None:
+    """Print ``line`` to stdout in one write, flushed: the output pumps of several children and the
+    launcher's own reports print from their own threads, and ``print`` writes the text and its
+    newline separately, so two nodes' lines could be glued together between the two writes."""
+    with _PRINT_LOCK:
+        sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+
 
 _T = TypeVar("_T")
 
@@ -120,7 +139,7 @@ class Supervisor:
         self._env = dict(os.environ if env is None else env)
         self._cwd = cwd
         self._log_dir = Path(log_dir) if log_dir is not None else None
-        self._echo = echo or (lambda line: print(line, flush=True))
+        self._echo = echo or print_line
         self._on_event = on_event
         self._lock = threading.RLock()
         self._cond = threading.Condition(self._lock)
@@ -386,8 +405,10 @@ class Supervisor:
                 events.append(self._record(SignalSent, child, signal=int(sig)))
         self._deliver(events)
 
-    def stop_processes(self, names: Iterable[str], sigterm_timeout: float, sigkill_timeout: float) -> None:
-        """Stop the process groups of ``names``: SIGINT, SIGTERM, SIGKILL (see the docstring).
+    def stop_processes(self, names: Iterable[str], sigterm_timeout: float, sigkill_timeout: float, *,
+                       unready_signal: int = signal.SIGINT) -> None:
+        """Stop the process groups of ``names``: SIGINT, SIGTERM, SIGKILL (see the docstring);
+        ``unready_signal`` is the first signal of a child that is not ``ready``.
 
         From the first call on nothing is respawned and exits are ``stopped``. Returns when
         the groups are gone (or ``REAP_TIMEOUT`` s after SIGKILL).
@@ -404,7 +425,9 @@ class Supervisor:
         def alive() -> list[_Child]:
             return [c for c in group if c.proc is not None and group_alive(c.proc.pid)]
 
-        self._signal(alive(), signal.SIGINT)
+        first = alive()
+        self._signal([c for c in first if c.state is ChildState.READY], signal.SIGINT)
+        self._signal([c for c in first if c.state is not ChildState.READY], unready_signal)
         sent_term = False
         kill_at = sigterm_timeout + sigkill_timeout
         while alive():

@@ -36,12 +36,19 @@ generation (same stamp as ``/world/terrain``) before it shows or answers a proxi
   the world's instance is made again from ``/world/proxy`` and ``/world/terrain``). A proxies
   query is drawn on the training map (:func:`world_dict` of it, ``show_train_world``), each option
   with its proxy's weights (``proxy_feature_names``: ``/world/proxy``'s feature names). The page
-  names options by letters and never shows sampler statistics after an answer (they are logged);
-  when the node shuts down the page is told the graph stopped.
+  names options by letters (so does this node's log, in both modes) and never shows sampler
+  statistics after an answer (they are logged); it shows how each drive ended (Rob's final
+  ``/rob/status``: plan, lava, target, true return, stopped early; and the navigator's last goal
+  status from ``/ird/navigate``'s action status: succeeded, aborted or canceled,
+  :func:`mission_dict`); at most ``max_pages`` pages are open at once (one more is refused with a
+  message naming the limit); when the node shuts down the page is told the graph stopped.
 
 The node never blocks an executor callback: simulated answers are ``call_async`` with a done
 callback. Every callback runs in ``ird_ros.runtime.guard``'s guard: whatever a message raises is
 logged, never the end of the node.
+
+Longer than 450 lines: the two modes share every subscription and the decoding of the current
+world's records; the page's dicts (``*_dict``) are short functions kept beside the node that fills them.
 """
 
 from __future__ import annotations
@@ -51,11 +58,12 @@ from enum import StrEnum
 from typing import Any
 
 import numpy as np
+from action_msgs.msg import GoalStatus, GoalStatusArray
 from nav_msgs.msg import OccupancyGrid
 
 from ird_core.designer.queries import SimulatedDesigner
 from ird_core.vocabulary import QueryEvent, QueryKind, values
-from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, QueryRecord, RewardPosterior, TerrainGrid
+from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, QueryRecord, RewardPosterior, RobStatus, TerrainGrid
 from ird_msgs.srv import AnswerQuery
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
@@ -70,7 +78,7 @@ from ird_ros.web import terrain_view
 from ird_ros.web.page_state import option_letter
 
 __all__ = ["DesignerNode", "DesignerMode", "PARAMETERS", "MODES", "world_dict", "posterior_dict", "risk_dict",
-           "plan_dict", "main"]
+           "plan_dict", "mission_dict", "GOAL_OUTCOMES", "main"]
 
 class DesignerMode(StrEnum):
     """Who answers: the node itself on the true returns, or a person on the web page."""
@@ -92,7 +100,13 @@ PARAMETERS: dict[str, Param] = {
     "answer_timeout": Param(120.0, "Seconds an answer may take (re-sampling) before it is given up",
                             min_value=0.1),
     "retry_period": Param(1.0, "Seconds before a simulated answer refused as busy is sent again", min_value=0.01),
+    "max_pages": Param(16, "Web pages open at once (WebSockets); one more is refused with a message naming the limit",
+                       min_value=1, max_value=1024, read_only=True),
 }
+
+#: The navigator's terminal goal states (``action_msgs/GoalStatus``), as the page says them.
+GOAL_OUTCOMES = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "aborted",
+                 GoalStatus.STATUS_CANCELED: "canceled"}
 
 
 HISTORY_SETTLE = 0.2
@@ -147,6 +161,30 @@ def plan_dict(info: PlanInfo) -> dict[str, Any]:
             "text": risk_text(info.mode, info.risk, level), "stamp": stamp_seconds(info.header.stamp)}
 
 
+def mission_dict(rob: RobStatus | None, goal: str | None) -> dict[str, Any] | None:
+    """The page's line on how the mission ended: Rob's final status (``rob``: plan label, cell, step
+    and horizon, lava, target, true return, stopped early) and the navigator's last goal outcome
+    (``goal``: "succeeded", "aborted", "canceled"), with ``text`` saying both; None if neither is known."""
+    if rob is None and goal is None:
+        return None
+    parts, out = [], {"goal": goal, "rob": None}
+    if rob is not None:
+        out["rob"] = {"plan_label": rob.plan_label, "row": int(rob.row), "col": int(rob.col), "step": int(rob.step),
+                      "horizon": int(rob.horizon), "touched_lava": bool(rob.touched_lava),
+                      "reached_target": bool(rob.reached_target), "true_return": float(rob.true_return),
+                      "stopped": bool(rob.stopped), "stamp": stamp_seconds(rob.header.stamp)}
+        plan = rob.plan_label or "unlabelled"
+        how = (f"stopped plan {plan} at step {rob.step} of {rob.horizon}" if rob.stopped
+               else f"finished plan {plan} ({rob.step} steps)")
+        parts.append(f"Rob {how}: {'touched lava' if rob.touched_lava else 'no lava'}, "
+                     f"{'reached a target' if rob.reached_target else 'no target'}, true return {rob.true_return:.2f}")
+    if goal is not None:
+        parts.append(f"the navigator's last goal {goal}")
+    out["text"] = "; ".join(parts) + "."
+    out["text"] = out["text"][0].upper() + out["text"][1:]
+    return out
+
+
 class DesignerNode(GuardedNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_DESIGNER, **kwargs)
@@ -166,6 +204,9 @@ class DesignerNode(GuardedNode):
         self.posterior: RewardPosterior | None = None
         self.risk: OccupancyGrid | None = None
         self.plan_info: PlanInfo | None = None
+        self.rob_final: RobStatus | None = None  # Rob's last status with done: true
+        self.goal_outcome: str | None = None  # the navigator's last terminal goal status
+        self._goal_seen: set[bytes] = set()  # goals whose terminal status was shown
         self._instance_key: tuple[Any, ...] | None = None  # what the Gaussian world's instance was made of
         self._instance: Any = None
         self._in_flight: set[tuple[int, int]] = set()  # (query_id, proposal stamp) being answered
@@ -176,7 +217,8 @@ class DesignerNode(GuardedNode):
         if self.mode is DesignerMode.WEB:
             from ird_ros.web.server import WebDesigner  # only the web mode needs the HTTP stack
 
-            self.web = WebDesigner(p["host"], int(p["port"]), self._web_answer, logger=self.get_logger())
+            self.web = WebDesigner(p["host"], int(p["port"]), self._web_answer, logger=self.get_logger(),
+                                   max_sockets=int(p["max_pages"]))
             self.web.start()
             self.get_logger().info(f"designer web page at {self.web.url}")
         latched = names.latched_qos()
@@ -188,6 +230,12 @@ class DesignerNode(GuardedNode):
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
         self.create_subscription(OccupancyGrid, names.TOPIC_RISK_MAP, self._on_risk, latched)
         self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_plan_info, latched)
+        if self.web is not None:  # how each drive ended, for the page
+            self.create_subscription(RobStatus, names.TOPIC_ROB_STATUS, self._on_rob_status, names.stream_qos())
+            from rclpy.qos import qos_profile_action_status_default
+
+            self.create_subscription(GoalStatusArray, f"{names.ACTION_NAVIGATE}/_action/status", self._on_goal_status,
+                                     qos_profile_action_status_default)
         self._retry_timer = self.create_timer(self.retry_period, self._update)
         # A (re)started designer receives the whole latched history as one burst: a proposal is
         # judged open only once the burst is in (no record for HISTORY_SETTLE seconds), or an
@@ -260,6 +308,27 @@ class DesignerNode(GuardedNode):
     def _on_plan_info(self, msg: PlanInfo) -> None:
         self.plan_info = msg
         self._show_posterior()
+
+    def _on_rob_status(self, msg: RobStatus) -> None:
+        if msg.done:
+            self.rob_final = msg
+            self._show_mission()
+
+    def _on_goal_status(self, msg: GoalStatusArray) -> None:
+        """The newest goal that reached a terminal state and was not shown yet."""
+        ended = [s for s in msg.status_list if s.status in GOAL_OUTCOMES
+                 and bytes(s.goal_info.goal_id.uuid) not in self._goal_seen]
+        if not ended:
+            return
+        last = max(ended, key=lambda s: (s.goal_info.stamp.sec, s.goal_info.stamp.nanosec))
+        self._goal_seen.update(bytes(s.goal_info.goal_id.uuid) for s in ended)
+        self.goal_outcome = GOAL_OUTCOMES[last.status]
+        self._show_mission()
+
+    def _show_mission(self) -> None:
+        mission = mission_dict(self.rob_final, self.goal_outcome)
+        if self.web is not None and mission is not None:
+            self.web.show_mission(mission)
 
     def current_plan(self) -> dict[str, Any] | None:
         """:func:`plan_dict` of the latest plan made in the current world (stamped at or after
@@ -335,8 +404,9 @@ class DesignerNode(GuardedNode):
         request = AnswerQuery.Request(query_id=proposal.query_id, chosen=chosen, beta=0.0,
                                       answered_by=DesignerMode.SIMULATED.value)
         self._in_flight.add(key)
+        returns_by_letter = ", ".join(f"{option_letter(k)} {r:.3f}" for k, r in enumerate(returns))
         self.get_logger().info(f"query {proposal.query_id}: {proposal.kind} options, true returns "
-                               f"{np.round(returns, 3).tolist()}, answering option {chosen}")
+                               f"{returns_by_letter}; answering Option {option_letter(chosen)}")
         self._client.call_async(request).add_done_callback(lambda fut, k=key: self._on_answered(k, fut))
 
     def _on_answered(self, key: tuple[int, int], future: Any) -> None:

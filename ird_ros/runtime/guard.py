@@ -16,8 +16,8 @@ ones rclpy itself created before (``~/get_type_description``):
 
 Failure messages (raised or returned) are at most :data:`MAX_MESSAGE` characters (a request may
 echo a huge field back).
-``KeyboardInterrupt``, ``SystemExit`` and rclpy's ``ExternalShutdownException`` pass through:
-they end the node on purpose. :func:`unguarded_callbacks` lists what a node left unguarded.
+``KeyboardInterrupt``, ``SystemExit``, ``GeneratorExit`` (a pending coroutine closed at shutdown)
+and rclpy's ``ExternalShutdownException`` pass through: they end the node on purpose. :func:`unguarded_callbacks` lists what a node left unguarded.
 """
 
 from __future__ import annotations
@@ -40,10 +40,11 @@ _MARK = "__ird_guarded__"
 
 
 def _passes(exc: BaseException) -> bool:
-    """Exceptions that end the node on purpose (never turned into answers)."""
+    """Exceptions that end the node on purpose (never turned into answers); ``GeneratorExit`` is
+    how a coroutine callback still waiting is closed when its node shuts down mid-goal."""
     from rclpy.executors import ExternalShutdownException
 
-    return isinstance(exc, (ExternalShutdownException, KeyboardInterrupt, SystemExit))
+    return isinstance(exc, (ExternalShutdownException, KeyboardInterrupt, SystemExit, GeneratorExit))
 
 
 def failure_text(exc: BaseException) -> str:
@@ -197,11 +198,24 @@ class GuardedNode(Node):
         return super().create_timer(timer_period_sec, guarded, *args, **kwargs)
 
 
+def action_qos() -> dict[str, Any]:
+    """The QoS keyword arguments of an IRD action's three services (goal, cancel, result), for
+    ``ActionServer`` and ``ActionClient`` alike: ``ird_ros.runtime.offload.service_qos()`` (reliable,
+    keep last ``SERVICE_QUEUE_DEPTH``). rclpy's default keeps 10 requests in the server's readers
+    and 10 responses in each client's reader (which receives the responses to every client of the
+    action): a burst of 50 goals lost most of its answers (issue 43)."""
+    from ird_ros.runtime.offload import service_qos
+
+    return {f"{kind}_service_qos_profile": service_qos() for kind in ("goal", "cancel", "result")}
+
+
 def guarded_action_server(node: Any, action_type: Any, action_name: str, *, execute_callback: Callable,
                           goal_callback: Callable, cancel_callback: Callable, **kwargs: Any) -> Any:
     """An ``rclpy.action.ActionServer`` whose callbacks are guarded: an exception in the goal or
     cancel callback rejects; in the execute callback it aborts the goal (if still active) and the
-    result's ``status`` / ``message`` (when the result has them) say ``aborted`` / ``internal error``."""
+    result's ``status`` / ``message`` (when the result has them) say ``aborted`` / ``internal error``.
+    Its goal, cancel and result services use :func:`action_qos` unless ``kwargs`` name their own
+    (a client needs the same depth: ``ird_ros.client.navigation.make_action_client``)."""
     from rclpy.action import ActionServer, CancelResponse, GoalResponse
 
     logger = node.get_logger()
@@ -228,7 +242,7 @@ def guarded_action_server(node: Any, action_type: Any, action_name: str, *, exec
                                        lambda _handle: CancelResponse.REJECT),
         handle_accepted_callback=guard_callback(lambda goal_handle: goal_handle.execute(), logger,
                                                 f"{action_name} accepted", aborted),
-        **kwargs)
+        **{**action_qos(), **kwargs})
 
 
 def unguarded_callbacks(node: Any) -> list[str]:

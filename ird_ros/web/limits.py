@@ -11,6 +11,8 @@ without recursion, before ``json.loads`` could exhaust the stack), headers at
 no complete request header for ``IDLE_TIMEOUT`` s (a slowloris client, or an idle keep-alive
 connection), or whose body does not arrive within ``BODY_TIMEOUT`` s, is closed; a WebSocket is
 pinged every ``WS_PING_INTERVAL`` s and closed when no pong came within ``WS_PING_TIMEOUT`` s.
+At most ``MAX_SOCKETS`` WebSockets (pages) are open at once; one more is closed with code
+``WS_CLOSE_TRY_AGAIN`` (1013) and a reason naming the limit.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ __all__ = [
     "BODY_TIMEOUT",
     "WS_PING_INTERVAL",
     "WS_PING_TIMEOUT",
+    "MAX_SOCKETS",
+    "WS_CLOSE_TRY_AGAIN",
     "json_depth",
     "check_json_depth",
 ]
@@ -44,6 +48,8 @@ IDLE_TIMEOUT = 30.0
 BODY_TIMEOUT = 30.0
 WS_PING_INTERVAL = 20.0
 WS_PING_TIMEOUT = 30.0
+MAX_SOCKETS = 16
+WS_CLOSE_TRY_AGAIN = 1013  # RFC 6455 "Try Again Later": a page beyond MAX_SOCKETS
 
 _OPEN = frozenset(b"[{")
 _CLOSE = frozenset(b"]}")

@@ -39,6 +39,7 @@ class PageState:
         self.posterior: dict[str, Any] | None = None
         self.risk_map: dict[str, Any] | None = None
         self.finished: str | None = None  # why the graph ended (the page stops asking), else None
+        self.mission: dict[str, Any] | None = None  # how the last drive ended (WebDesigner.show_mission)
 
     def history(self) -> list[dict[str, Any]]:
         answered = [r for r in self.queries.values() if r.get("chosen", -1) >= 0]
@@ -62,6 +63,7 @@ class PageState:
             "posterior": self.posterior,
             "risk_map": self.risk_map,
             "finished": self.finished,
+            "mission": self.mission,
         }
 
     def refusal(self, query_id: int, chosen: int) -> str | None:

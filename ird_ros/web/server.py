@@ -11,6 +11,7 @@ HTTP server (Tornado) running in its own thread. The designer node (``ird_ros.no
     web.show_query(record)             # a new open query
     web.show_answer(record)            # a query got answered (by anyone)
     web.show_posterior(posterior, risk_map)
+    web.show_mission(mission)          # how the last drive ended (Rob's final status, the goal's outcome)
     web.finish("mission finished")     # optional: the page shows a finished state, no more answers
     web.stop()                         # sends the end state ("graph stopped") to every open page first
 
@@ -49,9 +50,15 @@ up to 16 times that, refused from its header beyond), JSON nested over
 16 levels 400, both naming the limit; no complete header for ``idle_timeout`` s (slowloris) or no
 body for ``body_timeout`` s: disconnected; WebSocket messages capped and pinged. Every error, a
 handler's exception too, is a JSON ``{"ok": false, "message": ...}`` answer; the server keeps serving.
+At most ``max_sockets`` pages (16) are open at once: one more is closed with 1013 and a reason
+naming the limit; a page that reads slowly or not at all is sent only the latest state when it
+catches up (one message in flight per page), so it cannot make the server queue every state.
 
 Why Tornado: HTTP server, WebSockets and static files in one well-kept library with no
 dependencies of its own, and it is already in the venv (a dependency of Dask's distributed).
+
+Longer than 450 lines: the handlers, the per-page sender and ``WebDesigner`` share the server's
+state, lock and event loop; the caps and the page's state already live in ``limits`` and ``page_state``.
 
 Binding: 127.0.0.1 by default. Another host is allowed (a designer on another machine) with a
 logged warning: the page has no authentication. While bound to loopback, requests whose
@@ -75,6 +82,7 @@ import tornado.netutil
 import tornado.web
 import tornado.websocket
 
+from ird_ros.resources import web_static_dir
 from ird_ros.web import limits
 from ird_ros.web.limits import host_of, is_loopback, parse_answer
 from ird_ros.web.page_state import PageState, thank_you
@@ -82,7 +90,7 @@ from ird_ros.web.page_state import PageState, thank_you
 __all__ = ["WebDesigner", "OnAnswer", "WEB_DIR", "is_loopback"]
 
 #: Static assets of the page: only these files are served (never the server's own code).
-WEB_DIR = Path(__file__).resolve().parent / "static"
+WEB_DIR = web_static_dir()  # package data (ird_ros.resources)
 
 #: The node's answer callback: ``(query_id, chosen) -> (ok, message)``; blocks until answered.
 OnAnswer = Callable[[int, int], "tuple[bool, str]"]
@@ -173,21 +181,60 @@ class _AnswerHandler(_Handler):
 
 
 class _SocketHandler(tornado.websocket.WebSocketHandler):
+    """One open page. It is sent the whole state after every change, at most one message in flight:
+    while a write waits for a page that reads slowly (or not at all), newer states only mark it
+    dirty and the latest one follows when the write is done. So a page that never reads holds
+    two states in the server at most, not every state since it stopped, and the write a close
+    fails is retrieved here (no "exception was never retrieved" traceback per pending write)."""
+
     def initialize(self, web: "WebDesigner") -> None:
         self.web = web
+        self._sending = False
+        self._dirty = False
+        self._counted = False
 
     def prepare(self) -> None:
         _check_host(self)
 
     def open(self) -> None:
+        if len(self.web._sockets) >= self.web.max_sockets:
+            limit = self.web.max_sockets
+            self.web.log.warning(f"designer web page: refused a page: {limit} pages are open (max_sockets={limit})")
+            self.close(limits.WS_CLOSE_TRY_AGAIN, f"sockets: {limit} pages are open already (the limit is {limit})")
+            return
         self.web._sockets.add(self)
-        self.write_message(self.web.state_json())
+        self._counted = True
+        self.push()
+
+    def push(self) -> None:
+        """Send the current state now, or once the write in flight is done."""
+        if self._sending:
+            self._dirty = True
+            return
+        self._dirty = False
+        try:
+            future = self.write_message(self.web.state_json())
+        except tornado.websocket.WebSocketClosedError:
+            self._drop()
+            return
+        self._sending = True
+        future.add_done_callback(self._sent)
+
+    def _sent(self, future: "asyncio.Future[None]") -> None:
+        self._sending = False
+        if future.cancelled() or future.exception() is not None:  # retrieved: the socket closed
+            self._drop()
+        elif self._dirty:
+            self.push()
+
+    def _drop(self) -> None:
+        self.web._sockets.discard(self)
 
     def on_message(self, message: str | bytes) -> None:
         return None  # clicks go through POST /answer
 
     def on_close(self) -> None:
-        self.web._sockets.discard(self)
+        self._drop()
 
 
 class WebDesigner:
@@ -201,11 +248,14 @@ class WebDesigner:
         logger: anything with ``info``/``warning``/``error`` (an rclpy logger), default
             ``logging.getLogger(__name__)``.
         max_body, idle_timeout, body_timeout: the caps of ``ird_ros.web.limits`` (bytes, seconds).
+        max_sockets: pages open at once (WebSockets, ``limits.MAX_SOCKETS``); one more is closed at
+            once with code 1013 (try again later) and a reason naming the limit, which the page shows.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, on_answer: OnAnswer | None = None,
                  logger: Any = None, *, max_body: int = limits.MAX_BODY_BYTES,
-                 idle_timeout: float = limits.IDLE_TIMEOUT, body_timeout: float = limits.BODY_TIMEOUT) -> None:
+                 idle_timeout: float = limits.IDLE_TIMEOUT, body_timeout: float = limits.BODY_TIMEOUT,
+                 max_sockets: int = limits.MAX_SOCKETS) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
             raise ValueError(f"port: expected an integer in 0..65535, got {port!r}")
         if not isinstance(host, str) or not host:
@@ -215,6 +265,9 @@ class WebDesigner:
         for name, value in (("idle_timeout", idle_timeout), ("body_timeout", body_timeout), ("max_body", max_body)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {value!r}")
+        if isinstance(max_sockets, bool) or not isinstance(max_sockets, int) or not max_sockets >= 1:
+            raise ValueError(f"max_sockets: expected an integer >= 1, got {max_sockets!r}")
+        self.max_sockets = max_sockets
         self.max_body = int(max_body)
         self.max_read = int(max_body) * (limits.MAX_BODY_READ_BYTES // limits.MAX_BODY_BYTES)
         self.idle_timeout = float(idle_timeout)
@@ -300,7 +353,7 @@ class WebDesigner:
             for sock in list(self._sockets):  # the end state first, then the close
                 try:
                     await asyncio.wait_for(sock.write_message(message), 2.0)
-                except (tornado.websocket.WebSocketClosedError, TimeoutError):
+                except (tornado.websocket.WebSocketClosedError, TimeoutError, asyncio.CancelledError):
                     pass
                 sock.close(1001, "graph stopped")
             await self._server.close_all_connections()
@@ -373,6 +426,15 @@ class WebDesigner:
                 self._state.risk_map = copy.deepcopy(risk_map)
         self._changed()
 
+    def show_mission(self, mission: dict[str, Any]) -> None:
+        """How the mission's last drive ended: ``text`` (one line the page shows), ``goal`` (the
+        navigator's outcome: "succeeded", "aborted", "canceled" or None) and ``rob`` (Rob's final
+        status: ``plan_label``, ``touched_lava``, ``reached_target``, ``true_return``, ``stopped``, ...
+        or None); built by ``ird_ros.nodes.designer.mission_dict``."""
+        with self._lock:
+            self._state.mission = copy.deepcopy(mission)
+        self._changed()
+
     def finish(self, reason: str) -> None:
         """The graph or mission ended (``reason``, e.g. "mission finished"): the page shows it,
         stops offering the open question and refuses further answers."""
@@ -402,12 +464,8 @@ class WebDesigner:
                 pass  # the loop closed meanwhile: no page to update
 
     def _broadcast(self) -> None:
-        message = self.state_json()
         for sock in list(self._sockets):
-            try:
-                sock.write_message(message)
-            except tornado.websocket.WebSocketClosedError:
-                self._sockets.discard(sock)
+            sock.push()
 
     async def answer(self, query_id: int, chosen: int) -> tuple[int, bool, str]:
         """Check a click, then send it through ``on_answer``; ``(http_status, ok, message)``."""

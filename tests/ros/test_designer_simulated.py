@@ -26,6 +26,7 @@ from ird_ros.graph import names
 from ird_msgs.srv import ProposeQuery
 from ird_ros.graph.domains import DomainLease
 from ird_ros.testing import NodeProcess, running_nodes, spawn_node_process
+from ird_ros.web.page_state import option_letter
 
 DESIGNER_BETA, DESIGNER_SEED = 2.0, 9
 DESIGNER_ARGS = ["-p", "mode:=simulated", "-p", f"beta:={DESIGNER_BETA}", "-p", f"seed:={DESIGNER_SEED}"]
@@ -173,7 +174,9 @@ def test_simulated_designer_answers_a_proxies_query_on_the_training_map(mission:
         # A fresh designer (same seed): its first choice, Boltzmann on the training-map returns.
         assert answer.chosen == SimulatedDesigner(DESIGNER_BETA, DESIGNER_SEED).answer(returns)
         logged = designer.wait_for_output(f"query {query.query_id}: proxies options, true returns", timeout=30.0)
-        assert f"true returns {np.round(returns, 3).tolist()}," in logged, logged
+        # options by letter, as the page names them (issue 43)
+        by_letter = ", ".join(f"{option_letter(k)} {r:.3f}" for k, r in enumerate(returns))
+        assert f"true returns {by_letter}; answering Option {option_letter(answer.chosen)}" in logged, logged
         test_returns = [evaluation.true_return(mission.labels, cells) for cells in proposal.options]
         assert not np.allclose(returns, test_returns), "the test map would give the same returns: a weak check"
         mission.procs.remove(designer)

@@ -365,6 +365,16 @@ function render(newState) {
   drawRisk();
   renderPosterior();
   renderHistory();
+  renderMission();
+}
+
+// How the last drive ended (Rob's final status, the navigator's goal outcome), once one has.
+function renderMission() {
+  const box = $("mission"), mission = state.mission;
+  if (!mission) { box.className = "mission hidden"; return; }
+  box.textContent = `Mission: ${mission.text}`;
+  const bad = (mission.rob && mission.rob.touched_lava) || (mission.goal && mission.goal !== "succeeded");
+  box.className = "mission " + (bad ? "bad" : "good");
 }
 
 // ------------------------------------------------------------------ server
@@ -408,6 +418,10 @@ function connect() {
   socket.onmessage = (event) => render(JSON.parse(event.data));
   socket.onclose = (event) => {
     if (ended !== null) return;  // the server said the graph ended: nothing to reconnect to
+    if (event.code === 1013) {  // too many pages open: the server says so; reconnecting would not help
+      showFinished(`Not connected: ${event.reason}. Close another page of this designer and reload this one.`, "gone");
+      return;
+    }
     failedReconnects += 1;  // reset by the next open
     if (failedReconnects > MAX_RECONNECTS) {
       showFinished(`Graph gone: the designer's server has not answered ${MAX_RECONNECTS} reconnects in a row. ` +
