@@ -156,12 +156,16 @@ class NavigationResult:
 
 
 def make_action_client(node: Any) -> Any:
-    """An ``rclpy.action.ActionClient`` of ``/ird/navigate`` on ``node``."""
+    """An ``rclpy.action.ActionClient`` of ``/ird/navigate`` on ``node``, its goal, cancel and result
+    services with the navigator's deep QoS (``ird_ros.runtime.guard.action_qos``): with rclpy's
+    default depth of 10 a burst of answers overflows the client's response readers, which receive
+    the answers to every client of the action."""
     from rclpy.action import ActionClient
 
     from ird_msgs.action import NavigateIrd
+    from ird_ros.runtime.guard import action_qos
 
-    return ActionClient(node, NavigateIrd, names.ACTION_NAVIGATE)
+    return ActionClient(node, NavigateIrd, names.ACTION_NAVIGATE, **action_qos())
 
 
 class NavigationHandle:

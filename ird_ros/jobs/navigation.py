@@ -17,9 +17,15 @@ Invariants:
   planner checks it (:func:`ird_ros.jobs.planning.request_risk`: ``min`` with level 0, ``cvar``'s
   alpha in (0, 1], ``mean_sd``'s lambda in [0, 100] and never with ``trajectory``), refusals
   naming ``risk_measure`` or ``risk_level``.
+- :func:`check_goal_work` refuses, before any work, a goal whose samples the planner (its
+  ``max_plan_work``) or the designer questions (the inference node's ``max_query_work``) would
+  refuse only after the inference, naming ``num_samples`` and the limit; and resolves ``risk_measure``
+  "" against the planner's default measure as the planner will.
 - A :class:`DriveTracker` follows Rob's statuses of ONE plan (matched by the plan's stamp key):
   the driven cells are the plan's cells up to the last step Rob reported, start cell first; the
-  drive is over at the first status with ``done`` (finished or ``stopped``).
+  drive is over at the first status with ``done`` (finished or ``stopped``), or at Rob's first
+  status of a NEWER plan (``replaced_by``: someone else's ``/plan`` replaced ours, and Rob drives
+  that one now; statuses of older plans are ignored).
 - :func:`judge` evaluates driven cells with ``ird_core.worlds.evaluation.evaluate_path`` on the
   ground truth with Rob's policy (a terrain without a true reward earns 0; no true rewards at all:
   the return is NaN), so it equals Rob's own ``RobStatus`` verdict for the same cells.
@@ -36,11 +42,12 @@ import numpy as np
 
 from ird_core import planning
 from ird_core.checks import MAX_TEXT_LENGTH, check_real
-from ird_core.planning.risk_measures import MAX_LAMBDA, MIN_RISK
+from ird_core.planning.risk_measures import MAX_LAMBDA, MIN_RISK, Risk
 from ird_core.vocabulary import RISK_MEASURES, Baseline, PlanMode, RiskMeasure, ZMethod, parse
 from ird_core.worlds.evaluation import evaluate_path
 from ird_ros.jobs.ground_truth import evaluation_terrain
 from ird_ros.jobs.planning import request_risk
+from ird_ros.jobs.work import query_work
 
 __all__ = [
     "NavigationStatus",
@@ -52,6 +59,8 @@ __all__ = [
     "GoalLimits",
     "CheckedGoal",
     "check_goal",
+    "DownstreamLimits",
+    "check_goal_work",
     "posterior_summary",
     "Judgement",
     "judge",
@@ -154,6 +163,78 @@ def check_goal(*, method: object, beta: object, num_samples: object, seed: objec
     )
 
 
+@dataclass(frozen=True)
+class DownstreamLimits:
+    """What the planner and the inference node will hold a goal's requests to (their parameters
+    ``max_plan_work``, ``max_horizon``, ``risk`` / ``risk_level``, ``max_query_work``); None = not
+    known (that check is left to the service)."""
+
+    max_plan_work: float | None = None
+    max_horizon: int | None = None
+    default_risk: Risk | None = None
+    max_query_work: float | None = None
+
+
+#: ``num_options`` of the navigator's ``/ird/query`` requests (0 = the inference node's 2).
+QUERY_OPTIONS = 2
+
+
+def check_goal_work(goal: CheckedGoal, *, horizon: int, height: int, width: int, num_features: int,
+                    limits: DownstreamLimits) -> Risk | None:
+    """Refuse a checked goal that the planner or ``/ird/query`` would refuse only after the
+    inference, before any work starts; returns the risk measure the plan will use (``None`` when
+    the planner's default is not known).
+
+    Args:
+        goal: the checked goal.
+        horizon: the test horizon T (``/world/proxy``); height, width: the test map's grid;
+            num_features: d of the posterior (the training map's layers).
+        limits: the downstream nodes' limits.
+    Raises:
+        ValueError: naming ``num_samples`` (with the limit and the largest value that fits),
+            ``risk_measure`` / ``risk_level``, or ``horizon`` (the world's test horizon).
+    """
+    if limits.max_horizon is not None and horizon > limits.max_horizon:
+        raise ValueError(f"horizon: the world's test horizon {horizon} exceeds the planner's "
+                         f"max_horizon={limits.max_horizon}")
+    risk = None
+    if limits.default_risk is not None:  # as the planner resolves it, literal plans included
+        risk = request_risk(str(goal.risk_measure or ""), goal.risk_level, limits.default_risk, goal.mode,
+                            fields=("risk_measure", "risk_level"))
+    if goal.uses_current_posterior:  # no inference: a service's refusal comes at once anyway
+        return risk
+    k, cells = goal.num_samples, int(height) * int(width)
+    if limits.max_plan_work is not None and goal.mode != PlanMode.LITERAL:
+        work = planning.plan_work(k, horizon, height, width)
+        if work > limits.max_plan_work:
+            fits = int(limits.max_plan_work // ((int(horizon) + 1) * max(cells, 1)))
+            raise ValueError(f"num_samples: {k} samples x (horizon {horizon} + 1) x {height}x{width} cells = "
+                             f"{work:.3g} exceeds the planner's max_plan_work={limits.max_plan_work:.3g} "
+                             f"(/ird/plan would refuse the plan after the inference): at most {fits} samples fit")
+    if limits.max_query_work is not None and goal.queries > 0:
+        work = query_work(k, height, width, horizon, num_features, QUERY_OPTIONS)
+        if work > limits.max_query_work:
+            fits = _largest(lambda n: query_work(n, height, width, horizon, num_features, QUERY_OPTIONS)
+                            <= limits.max_query_work, k)
+            raise ValueError(f"num_samples: {k} samples on a {height}x{width} map (d={num_features}, horizon "
+                             f"{horizon}) make each of the {goal.queries} question(s) /ird/query work {work:.3g}, "
+                             f"more than the inference node's max_query_work={limits.max_query_work:.3g}: at "
+                             f"most {fits} samples fit with queries")
+    return risk
+
+
+def _largest(fits: Any, high: int) -> int:
+    """The largest n in [0, high] with ``fits(n)`` (``fits`` monotone decreasing, ``fits(0)`` assumed)."""
+    low = 0
+    while low < high:
+        mid = (low + high + 1) // 2
+        if fits(mid):
+            low = mid
+        else:
+            high = mid - 1
+    return low
+
+
 def _checked_risk(risk_measure: object, risk_level: object, mode: object) -> tuple[RiskMeasure | None, float]:
     """The goal's measure (None = the planner's default) and level as ``/ird/plan`` will get
     them (module doc); ``ValueError`` naming ``risk_measure`` or ``risk_level``."""
@@ -212,7 +293,22 @@ class DriveTracker:
     cell: tuple[int, int] | None = None
     final: Any = None
     stopped: bool = False
+    replaced_by: tuple[Any, str] | None = None  # (stamp key, label) of the newer plan Rob drives instead
     _steps: dict[int, tuple[int, int]] = field(default_factory=dict)
+
+    def other_plan(self, key: Any, label: str = "") -> bool:
+        """Take a status that is not of this plan: True (recorded in ``replaced_by``) when it is the
+        first of a newer plan than this one (its stamp key is greater) while this drive is not
+        over, i.e. another ``/plan`` replaced ours; older plans' statuses change nothing."""
+        if key == self.plan_key or self.final is not None or self.replaced_by is not None or not key > self.plan_key:
+            return False
+        self.replaced_by = (key, str(label))
+        return True
+
+    @property
+    def over(self) -> bool:
+        """The drive is over: finished, stopped, or replaced by a newer plan."""
+        return self.final is not None or self.replaced_by is not None
 
     def feed(self, key: Any, step: int, row: int, col: int, done: bool, stopped: bool = False,
              status: Any = None) -> bool:

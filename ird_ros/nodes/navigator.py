@@ -18,7 +18,9 @@ A goal runs, in order (feedback ``stage`` names the step):
    the planner publishes ``/plan`` and Rob starts driving it.
 4. ``driving``: Rob's ``/rob/status`` for that plan's stamp (feedback: his cell and pose,
    ``progress`` = fraction of the plan driven) until ``done``; no status for ``rob_timeout`` s:
-   aborted.
+   aborted. Rob's first status of a NEWER plan (another client's ``/ird/plan``, or the planner's
+   ``replan_on_posterior``, replaced ours on ``/plan``) aborts the goal at once, saying so, with
+   the label and stamp of the plan Rob drives now (:class:`ird_ros.jobs.navigation.DriveTracker`).
 
 The result: the driven cells (start first), ``touched_lava`` / ``reached_target`` / ``true_return``
 by :func:`ird_ros.jobs.navigation.judge` on ``/world/terrain`` and ``/world/proxy``'s true rewards
@@ -34,12 +36,24 @@ Choices (docs/spec.md section 6):
   ``mean_sd`` with ``trajectory``), ``queries`` < 0 or > ``max_queries``, ``label`` longer than
   ``ird_core.checks.MAX_TEXT_LENGTH``) is accepted and finished at once, before any work, with
   result status ``rejected`` and the field in ``field`` (protocol status ABORTED: the protocol's
-  rejection carries no reason). The action server's callbacks run in
-  ``ird_ros.runtime.guard``'s guard: an unexpected exception rejects the goal (or the cancel) or
+  rejection carries no reason). So is a goal that a later service would refuse only after the
+  inference (:func:`ird_ros.jobs.navigation.check_goal_work`): ``num_samples`` past what the
+  planner's ``max_plan_work`` (or, with ``queries``, the inference node's ``max_query_work``)
+  allows on the world's test map, or a ``risk_level`` that the planner's default measure refuses.
+  The limits are read from the planner's and the inference node's parameter services at the
+  goal's start. The action server's callbacks run in ``ird_ros.runtime.guard``'s guard: an unexpected exception rejects the goal (or the cancel) or
   aborts it, and the node keeps serving.
 - Cancel: the goal stops waiting; while Rob drives (or once a plan asked for before the cancel is
   out and Rob reported its first cell), ``/rob/stop`` stops him where he is (his last status says
   ``stopped``) and the result is ``canceled`` with the cells driven so far (none before driving).
+  A service request the cancel stopped waiting for (``/ird/infer``, ``/ird/query``) cannot be
+  withdrawn (ROS services have no cancel) and still occupies the inference node until answered,
+  so the navigator keeps at most one request per service outstanding: the next goal's request
+  waits for that answer first (or, being the same request, takes that answer as its own). N
+  cancelled goals thus hold at most one of the inference node's ``max_pending`` places, not N.
+- Bursts: the action's goal, cancel and result services have the deep service QoS on both ends
+  (``ird_ros.runtime.guard.action_qos``); a goal while one is active and any cancel are answered at
+  once, so every request of a burst is answered.
 
 The goal is a coroutine on the node's single-threaded executor (``run_node``): every service
 call and wait is awaited, never blocking, so subscriptions, cancel requests and parameter services
@@ -53,11 +67,14 @@ import math
 from collections import deque
 from typing import Any
 
+from rcl_interfaces.srv import GetParameters
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.parameter import parameter_value_to_python
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
+from ird_core.planning.risk_measures import MIN_RISK
 from ird_msgs.action import NavigateIrd
 from ird_msgs.msg import ProxyReward, QueryRecord, RewardPosterior, RobStatus, TerrainGrid
 from ird_msgs.srv import InferReward, PlanPath, ProposeQuery
@@ -65,14 +82,17 @@ from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.jobs.navigation import (
     CheckedGoal,
+    DownstreamLimits,
     DriveTracker,
     GoalLimits,
     NavigationStatus,
     Stage,
     check_goal,
+    check_goal_work,
     judge,
     posterior_summary,
 )
+from ird_ros.jobs.planning import request_risk
 from ird_ros.runtime.guard import MAX_MESSAGE, GuardedNode, guarded_action_server
 from ird_ros.runtime.node_main import exit_process, run_node
 from ird_ros.runtime.node_params import Param, declare_all
@@ -98,6 +118,12 @@ PARAMETERS: dict[str, Param] = {
 }
 
 _STATUS_BUFFER = 1000  # recent /rob/status messages kept: Rob may report before /ird/plan answers
+
+#: The parameter services the navigator reads the downstream limits from (relative names: the
+#: nodes share the navigator's namespace).
+_PLANNER_PARAMETERS = f"{names.NODE_PLANNER}/get_parameters"
+_INFERENCE_PARAMETERS = f"{names.NODE_INFERENCE}/get_parameters"
+_GOAL_FIELDS = frozenset(NavigateIrd.Goal.get_fields_and_field_types())
 
 
 class _Stop(Exception):
@@ -129,6 +155,8 @@ class NavigatorNode(GuardedNode):
         self._events: list[Future] = []  # woken by every input and by a cancel request
         self._tracker: DriveTracker | None = None
         self._in_flight: tuple[str, Any] | None = None  # the latest service call: (service, future)
+        # per service, the (request, future) of a call a cancel stopped waiting for, until answered
+        self._orphans: dict[str, tuple[Any, Any]] = {}
         self._goal_handle: Any = None
         self._summary = ""
         latched = names.latched_qos()
@@ -142,7 +170,9 @@ class NavigatorNode(GuardedNode):
         group = ReentrantCallbackGroup()
         self._service_clients = {service: self.create_client(srv, service, qos_profile=service_qos(), callback_group=group)
                          for service, srv in ((names.SRV_INFER, InferReward), (names.SRV_QUERY, ProposeQuery),
-                                              (names.SRV_PLAN, PlanPath), (names.SRV_ROB_STOP, Trigger))}
+                                              (names.SRV_PLAN, PlanPath), (names.SRV_ROB_STOP, Trigger),
+                                              (_PLANNER_PARAMETERS, GetParameters),
+                                              (_INFERENCE_PARAMETERS, GetParameters))}
         self._server = guarded_action_server(self, NavigateIrd, names.ACTION_NAVIGATE, execute_callback=self._execute,
                                              goal_callback=self._on_goal, cancel_callback=self._on_cancel,
                                              callback_group=group)
@@ -190,6 +220,8 @@ class NavigatorNode(GuardedNode):
 
     def _feed(self, msg: RobStatus) -> bool:
         tracker = self._tracker
+        if tracker is not None and tracker.other_plan(stamp_key(msg.plan_stamp), msg.plan_label):
+            return True  # a newer plan replaced ours: the drive loop ends at once
         if tracker is None or not tracker.feed(stamp_key(msg.plan_stamp), msg.step, msg.row, msg.col, msg.done,
                                                msg.stopped, msg):
             return False
@@ -231,15 +263,92 @@ class NavigatorNode(GuardedNode):
         if not await self._wait(client.service_is_ready, self.service_timeout):
             raise _Stop(NavigationStatus.ABORTED, f"{service}: not available within {self.service_timeout:g} s "
                                                   f"(is its node running?)")
-        future = client.call_async(request)
-        future.add_done_callback(lambda _f: self._wake())
+        future = await self._settle_orphan(service, request)
+        if future is None:
+            future = client.call_async(request)
+            future.add_done_callback(lambda _f: self._wake())
         self._in_flight = (service, future)
-        if not await self._wait(future.done, self.call_timeout):
+        try:
+            answered = await self._wait(future.done, self.call_timeout)
+        except _Stop:  # canceled: the request stays with its server until answered (module doc)
+            if not future.done():
+                self._orphans[service] = (request, future)
+            raise
+        if not answered:
+            client.remove_pending_request(future)  # a late answer is dropped, not kept forever
             raise _Stop(NavigationStatus.ABORTED, f"{service}: no answer within {self.call_timeout:g} s")
         response = future.result()
         if hasattr(response, "success") and not response.success and service != names.SRV_ROB_STOP:
             raise _Stop(NavigationStatus.ABORTED, f"{service} failed: {response.message}")
         return response
+
+    async def _settle_orphan(self, service: str, request: Any) -> Any:
+        """Before a request to ``service``: the pending future of a canceled goal's identical request
+        (its answer is this request's), else None once a canceled goal's different request to it is
+        answered (waited for, up to ``call_timeout``): at most one request per service outstanding."""
+        orphan = self._orphans.get(service)
+        if orphan is None:
+            return None
+        old_request, future = orphan
+        if future.done():
+            del self._orphans[service]
+            return None
+        if old_request == request:
+            del self._orphans[service]
+            self.get_logger().info(f"{service}: a canceled goal's identical request is still pending: its "
+                                   f"answer is this goal's")
+            return future
+        self.get_logger().info(f"{service}: waiting for the answer to a canceled goal's request before sending "
+                               f"this goal's (one request per service at a time)")
+        if not await self._wait(future.done, self.call_timeout):  # a cancel now keeps the orphan
+            self._service_clients[service].remove_pending_request(future)
+        self._orphans.pop(service, None)
+        return None
+
+    async def _remote_parameters(self, service: str, wanted: tuple[str, ...]) -> dict[str, Any]:
+        """The values of ``wanted`` parameters from a node's ``get_parameters`` service (None: unset)."""
+        response = await self._call(service, GetParameters.Request(names=list(wanted)))
+        values = [parameter_value_to_python(v) for v in response.values]
+        return dict(zip(wanted, values)) if len(values) == len(wanted) else {}
+
+    @staticmethod
+    def _number(value: Any) -> Any:
+        return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+    async def _preflight(self, goal: CheckedGoal, proxy: ProxyReward) -> None:
+        """Refuse a goal that the planner or /ird/query would refuse only after the inference
+        (:func:`check_goal_work` with their parameters), before any work starts."""
+        planner = await self._remote_parameters(_PLANNER_PARAMETERS, ("max_plan_work", "max_horizon", "risk", "risk_level"))
+        inference: dict[str, Any] = {}
+        num_features = 0
+        if goal.queries > 0 and not goal.uses_current_posterior:
+            inference = await self._remote_parameters(_INFERENCE_PARAMETERS, ("max_query_work",))
+            base = await self._latched("infer_request", names.TOPIC_INFER_REQUEST)
+            num_features = len(base.training_map.layers)
+        default_risk = None
+        try:
+            if planner.get("risk") is not None and planner.get("risk_level") is not None:
+                default_risk = request_risk(str(planner["risk"]), float(planner["risk_level"]), MIN_RISK)
+        except ValueError:  # a planner with such parameters does not start; leave the check to it
+            default_risk = None
+        if self.terrain is None:  # latched with the proxy; without it the sizes are left to the services
+            await self._wait(lambda: self.terrain is not None, self.service_timeout)
+        terrain = self.terrain
+        sized = terrain is not None
+        height, width = terrain.classes.shape[:2] if terrain is not None else (0, 0)
+        number = self._number
+        limits = DownstreamLimits(
+            max_plan_work=number(planner.get("max_plan_work")) if sized else None,
+            max_horizon=number(planner.get("max_horizon")), default_risk=default_risk,
+            max_query_work=number(inference.get("max_query_work")) if sized else None)
+        try:
+            check_goal_work(goal, horizon=int(proxy.test_horizon), height=int(height), width=int(width),
+                            num_features=num_features, limits=limits)
+        except ValueError as exc:
+            field = str(exc).split(":", 1)[0]
+            if field in _GOAL_FIELDS:
+                raise _Stop(NavigationStatus.REJECTED, str(exc), field) from None
+            raise _Stop(NavigationStatus.ABORTED, str(exc)) from None
 
     async def _latched(self, attribute: str, topic: str) -> Any:
         if not await self._wait(lambda: getattr(self, attribute) is not None, self.service_timeout):
@@ -250,14 +359,14 @@ class NavigatorNode(GuardedNode):
     # ------------------------------------------------------------------ action callbacks
 
     def _on_goal(self, _goal: NavigateIrd.Goal) -> GoalResponse:
-        if self._busy:
-            self.get_logger().warning("goal rejected: a goal is active (one goal at a time)")
+        if self._busy:  # answered at once; a burst logs one line a second, not one per goal
+            self.get_logger().warning("goal rejected: a goal is active (one goal at a time)", throttle_duration_sec=1.0)
             return GoalResponse.REJECT
         self._busy = True
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, _goal_handle: Any) -> CancelResponse:
-        self.get_logger().info("cancel requested")
+        self.get_logger().info("cancel requested", throttle_duration_sec=1.0)
         self._cancel = True
         self._wake()
         return CancelResponse.ACCEPT
@@ -337,14 +446,14 @@ class NavigatorNode(GuardedNode):
                 if await self._wait(future.done, self.call_timeout) and future.result().success:
                     self._track(future.result())
             tracker = self._tracker
-            if tracker is None or tracker.done:
+            if tracker is None or tracker.over:  # finished, stopped, or driving someone else's plan
                 return
-            await self._wait(lambda: tracker.done or tracker.last_step >= 0, self.rob_timeout)
-            if tracker.done:
+            await self._wait(lambda: tracker.over or tracker.last_step >= 0, self.rob_timeout)
+            if tracker.over:
                 return
             response = await self._call(names.SRV_ROB_STOP, Trigger.Request())
             self.get_logger().info(f"Rob: {response.message}")
-            await self._wait(lambda: tracker.done, self.service_timeout)
+            await self._wait(lambda: tracker.over, self.service_timeout)
         except _Stop as exc:
             self.get_logger().error(f"could not stop Rob: {exc.message}")
 
@@ -352,6 +461,9 @@ class NavigatorNode(GuardedNode):
 
     async def _navigate(self, goal: CheckedGoal, result: NavigateIrd.Result) -> None:
         proxy = await self._latched("proxy", names.TOPIC_PROXY)
+        if goal.uses_current_posterior and not self.posteriors:
+            raise self._no_posterior()
+        await self._preflight(goal, proxy)
         samples = await self._posterior(goal)
         for i in range(goal.queries):
             samples = await self._ask(goal, proxy, i)
@@ -367,11 +479,20 @@ class NavigatorNode(GuardedNode):
         result.objective = float(plan.objective)
         tracker = self._track(plan)
         self._feedback(Stage.DRIVING, tracker)
-        while not tracker.done:
+        while not tracker.over:
             step = tracker.last_step
-            if not await self._wait(lambda: tracker.done or tracker.last_step != step, self.rob_timeout):
+            if not await self._wait(lambda: tracker.over or tracker.last_step != step, self.rob_timeout):
                 raise _Stop(NavigationStatus.ABORTED, f"{names.TOPIC_ROB_STATUS}: no status from Rob for "
                                                       f"{self.rob_timeout:g} s while driving")
+        if tracker.replaced_by is not None:
+            (sec, nanosec), label = tracker.replaced_by
+            driven = f"after {tracker.last_step} of {tracker.horizon} moves" if tracker.last_step >= 0 else \
+                "before his first move"
+            raise _Stop(NavigationStatus.ABORTED, f"{names.TOPIC_PLAN}: another plan replaced this goal's {driven}: "
+                                                  f"Rob now drives plan '{label or '(no label yet)'}' (stamp "
+                                                  f"{sec}.{nanosec:09d}), published by another client's "
+                                                  f"{names.SRV_PLAN} (or the planner's replan_on_posterior); this "
+                                                  f"goal's plan was abandoned")
         if tracker.stopped:
             raise _Stop(NavigationStatus.ABORTED, "Rob was stopped (/rob/stop) before the end of the plan")
 
@@ -389,12 +510,16 @@ class NavigatorNode(GuardedNode):
                                           posterior.converged, answers)
         return [float(v) for v in posterior.samples.ravel()]
 
+    @staticmethod
+    def _no_posterior() -> _Stop:
+        return _Stop(NavigationStatus.REJECTED, f"method: '' uses the current posterior, but none was received on "
+                                                f"{names.TOPIC_POSTERIOR} (infer first)", "method")
+
     async def _posterior(self, goal: CheckedGoal) -> list[float]:
         """Step 1: the posterior's samples (K*d values), inferred or the current one."""
         if goal.uses_current_posterior:
             if not self.posteriors:
-                raise _Stop(NavigationStatus.REJECTED, f"method: '' uses the current posterior, but none was "
-                                                       f"received on {names.TOPIC_POSTERIOR} (infer first)", "method")
+                raise self._no_posterior()
             samples = self._summarise(self.posteriors[-1])
             self._feedback(Stage.INFERRING)
             return samples

@@ -5,7 +5,10 @@ A goal infers, plans and drives, with feedback in every stage, and its result ju
 cells like ird_core's evaluate_path on the ground truth; cancel stops Rob where he is; a second
 goal while one runs is rejected; bad goals are rejected naming the field; "" uses the current
 posterior; the goal's risk measure reaches /ird/plan; a question with no designer running aborts
-saying so.
+saying so. Issue 43: goals that a later service would refuse (num_samples past the planner's
+max_plan_work or, with questions, the inference node's max_query_work) are rejected before any
+work; many goal-then-cancel cycles leave the inference node free for the next goal; another
+client's plan replacing the goal's on /plan aborts the goal at once, saying so.
 """
 
 from __future__ import annotations
@@ -26,6 +29,10 @@ SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
 #: must not be a tight wall-clock budget: 3 s failed under a loaded CI run. The test without a
 #: designer waits this long for its abort.
 ANSWER_TIMEOUT = 30.0
+#: The planner's max_plan_work in this graph: samples x (T + 1) x H x W = K x 9 x 36, so at most
+#: 3086 samples fit (the default, 5e7, fits every num_samples up to max_num_samples on a 6x6 map).
+MAX_PLAN_WORK = 1_000_000
+ROB_TIMEOUT = 30.0  # the navigator's default rob_timeout
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +46,8 @@ def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     # Slow enough to cancel mid-drive (T = 8 moves take 1.6 s), fast enough for the suite.
     params["rob"]["ros__parameters"]["rate_hz"] = 5.0
     params["navigator"]["ros__parameters"]["answer_timeout"] = ANSWER_TIMEOUT
+    params["navigator"]["ros__parameters"]["rob_timeout"] = ROB_TIMEOUT
+    params["planner"]["ros__parameters"]["max_plan_work"] = MAX_PLAN_WORK
     params_file = tmp / "graph.yaml"
     params_file.write_text(yaml.safe_dump(params))
     with GraphLauncher(params=params_file, private_domain=True, output="quiet", log_dir=tmp / "logs") as launched:
@@ -258,3 +267,83 @@ def test_cancel_while_inferring_ends_the_goal_before_rob_drives(ird: Any) -> Non
     assert result.status is NavigationStatus.CANCELED, result.message
     assert result.cells.shape == (0, 2) and result.touched_lava is None
     assert "driving" not in {f.stage for f in feedback}
+
+
+def test_num_samples_past_the_planners_work_limit_is_rejected_before_any_work(ird: Any) -> None:
+    """Issue 43: num_samples=100000 was accepted, inferred for a minute, then aborted on the
+    planner's max_plan_work without naming num_samples. Now the goal is refused at once."""
+    import time
+
+    from ird_ros.client import NavigationStatus
+
+    feedback: list[Any] = []
+    started = time.monotonic()
+    result = ird.navigate(_goal(num_samples=100000, seed=17), on_feedback=feedback.append, timeout=60)
+    assert result.status is NavigationStatus.REJECTED, result.message
+    assert result.field == "num_samples" and result.message.startswith("num_samples: 100000 samples"), result.message
+    assert f"max_plan_work={MAX_PLAN_WORK:.3g}" in result.message and "at most 3086 samples" in result.message
+    assert not feedback  # refused before the inference began (no "inferring" feedback)
+    assert time.monotonic() - started < 30.0  # the time budget of one inference is 60 s
+
+
+def test_num_samples_past_the_query_work_limit_is_rejected_when_asking(ird: Any) -> None:
+    from ird_ros.client import NavigationStatus
+
+    feedback: list[Any] = []
+    result = ird.navigate(_goal(num_samples=3000, queries=1, seed=18), on_feedback=feedback.append, timeout=60)
+    assert result.status is NavigationStatus.REJECTED, result.message
+    assert result.field == "num_samples" and "max_query_work=5e+09" in result.message, result.message
+    assert not feedback
+
+
+CANCEL_CYCLES = 20
+
+
+def test_goal_then_cancel_cycles_leave_the_inference_node_free(ird: Any, inst: Any) -> None:
+    """Issue 43: each canceled goal left its /ird/infer running in the inference node; after 20
+    goal-then-cancel cycles the next goal aborted "busy: 16 requests are pending". The navigator
+    keeps at most one request per service outstanding, so the goal after the cycles succeeds."""
+    from ird_ros.client import NavigationStatus
+
+    for i in range(CANCEL_CYCLES):
+        feedback: list[Any] = []
+        handle = ird.navigate_async(_goal(seed=100 + i, label="nav_test_cycle"), on_feedback=feedback.append)
+        ird.spin_until(lambda: bool(feedback) or handle.done(), timeout=120, what=f"cycle {i}: the goal's feedback")
+        handle.cancel()
+        result = handle.result(timeout=120)
+        assert result.status is NavigationStatus.CANCELED, (i, result.message)
+    result = ird.navigate(_goal(seed=99), timeout=300)
+    assert result.status is NavigationStatus.SUCCEEDED, result.message
+    assert tuple(result.cells[0]) == tuple(inst.test_start) and len(result.cells) == inst.test_horizon + 1
+
+
+def test_another_clients_plan_replacing_the_drive_aborts_the_goal_saying_so(ird: Any, inst: Any) -> None:
+    """Issue 43: another client's /ird/plan during the drive aborted the goal 30 s later with "no
+    status from Rob for 30 s". Now Rob's first status of the newer plan ends the goal at once, and
+    the message names what happened and the plan Rob drives now (its stamp, and its label once
+    Rob knows it). A drive that ends before the other plan lands (T = 8 moves take 1.6 s) proves
+    nothing, so the goal is sent again, up to 3 times."""
+    from ird_ros.client import NavigationStatus, plan_request
+    from ird_ros.stamps import stamp_text
+
+    for attempt in range(3):
+        feedback: list[Any] = []
+        handle = ird.navigate_async(_goal(method="", seed=19, label="nav_test_replaced"),
+                                    on_feedback=feedback.append)
+        ird.spin_until(lambda: any(f.stage == "driving" and f.pose_cell is not None for f in feedback)
+                       or handle.done(), timeout=300, what="Rob driving the navigation plan")
+        assert not handle.done(), handle.result().message
+        other = ird.plan(plan_request(tuple(inst.test_start), inst.test_horizon, "literal", "none",
+                                      label="someone_else"), timeout=60)
+        assert other.ok, other.message
+        result = handle.result(timeout=ROB_TIMEOUT / 2)  # the old failure came only after rob_timeout
+        if result.status is NavigationStatus.SUCCEEDED:  # the drive ended before the other plan landed
+            continue
+        assert result.status is NavigationStatus.ABORTED, result.message
+        assert "another plan replaced this goal's" in result.message, result.message
+        assert f"(stamp {stamp_text(other.value.stamp)})" in result.message, result.message
+        assert "'someone_else'" in result.message or "(no label yet)" in result.message, result.message
+        cells = [tuple(c) for c in result.cells]
+        assert 1 <= len(cells) <= inst.test_horizon + 1 and cells[0] == tuple(inst.test_start)
+        return
+    pytest.fail("in 3 attempts every drive ended before the other client's plan reached Rob")
