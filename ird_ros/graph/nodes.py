@@ -125,7 +125,8 @@ NODES: tuple[NodeSpec, ...] = (
     NodeSpec(
         # Serves the NavigateIrd action names.ACTION_NAVIGATE (not a service: readiness is the node
         # in the graph; clients wait for the action server themselves). A client of /ird/infer,
-        # /ird/query, /ird/plan and /rob/stop while a goal runs; publishes nothing of its own.
+        # /ird/query, /ird/plan and /rob/stop while a goal runs, and of planner/get_parameters and
+        # inference/get_parameters before it (the goal's work limits); publishes nothing of its own.
         name=names.NODE_NAVIGATOR,
         module="ird_ros.nodes.navigator",
         publishes=(),
@@ -140,9 +141,11 @@ NODES: tuple[NodeSpec, ...] = (
         name=names.NODE_DESIGNER,
         module="ird_ros.nodes.designer",
         publishes=(),
-        # /world/train_features and /world/test_features: the training map's terrain (proxies queries)
+        # /world/train_features and /world/test_features: the training map's terrain (proxies queries);
+        # /rob/status and (web mode) the NavigateIrd action's status: how the mission ended, on the page
         subscribes=(names.TOPIC_QUERIES, names.TOPIC_TERRAIN, names.TOPIC_PROXY, names.TOPIC_TRAIN_FEATURES,
-                    names.TOPIC_TEST_FEATURES, names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_PLAN_INFO),
+                    names.TOPIC_TEST_FEATURES, names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_PLAN_INFO,
+                    names.TOPIC_ROB_STATUS),
         services=(),
         ready_topics=(),
         default=False,
@@ -156,7 +159,7 @@ NODES: tuple[NodeSpec, ...] = (
         publishes=(names.TOPIC_VIZ_STATUS,),
         subscribes=(names.TOPIC_TERRAIN, names.TOPIC_TERRAIN_CLASSES, names.TOPIC_TEST_FEATURES,
                     names.TOPIC_TERRAIN_FEATURES, names.TOPIC_POSTERIOR, names.TOPIC_RISK_MAP, names.TOPIC_PLAN,
-                    names.TOPIC_PLAN_INFO, names.TOPIC_ODOM, names.TOPIC_QUERIES),
+                    names.TOPIC_PLAN_INFO, names.TOPIC_ODOM, names.TOPIC_QUERIES, names.TOPIC_ROB_STATUS),
         services=(),
         ready_topics=(names.TOPIC_VIZ_STATUS,),
         default=False,
