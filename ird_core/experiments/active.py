@@ -86,19 +86,21 @@ _SMALL = TrialSpec("side_effects", 0, **QUICK)
 
 @dataclass(frozen=True)
 class ActiveSpec:
-    """Everything one trial depends on. The map is the paper's (15x15, T = 30: large enough for
-    queries to differ); ``obs_dim`` and the sampler settings are the experiments' small settings
-    (:data:`ird_core.experiments.QUICK`: ``obs_dim`` 10, 64 samples, beta 50, 4 chains), with
-    MaxEnt-Z (its gradient is cheap)."""
+    """Everything one trial depends on. The map and the observations are the paper's (15x15,
+    T = 30, 50-d observations in the latent conditions, as in Figure 4); the sampler settings are
+    the experiments' small fixed-length ones (:data:`ird_core.experiments.QUICK`: 64 samples,
+    beta 50, 4 chains), with MaxEnt-Z (its gradient is cheap). The designer model is the
+    calibrated one (``temperature``; ``prior_sigma`` None: ``1 / temperature``)."""
 
     condition: str
     seed: int
     size: int = 15
     horizon: int = 30
-    obs_dim: int = _SMALL.obs_dim
+    obs_dim: int = TrialSpec.obs_dim
     num_samples: int = _SMALL.num_samples
     beta: float = _SMALL.beta
-    prior_sigma: float = _SMALL.prior_sigma
+    prior_sigma: "float | None" = None
+    temperature: float = posterior.CALIBRATED_TEMPERATURE
     method: str = ZMethod.MAXENT_Z.value
     num_chains: int = _SMALL.num_chains
     warmup: int = _SMALL.warmup
@@ -119,6 +121,7 @@ class ActiveSpec:
         return self.designer_beta if self.choice_beta is None else float(self.choice_beta)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "prior_sigma", posterior.resolve_prior_sigma(self.prior_sigma, self.temperature))
         if self.condition not in lavaland.ALL_CONDITIONS:
             raise ValueError(f"condition: expected one of {lavaland.ALL_CONDITIONS}, got {self.condition!r}")
         counts = tuple(self.query_counts)
@@ -197,7 +200,9 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     # Sample-Z's proxy counts are computed once, in the proxy's own space (latent_classifier),
     # and shared by every re-sample, like the proxy's own counts.
     num_proxy = posterior.DEFAULT_NUM_PROXY_SAMPLES if spec.method == ZMethod.SAMPLE_Z else None
-    proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma)
+    model = posterior.ObservationModel(temperature=spec.temperature)
+    proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma,
+                                          observation_model=model)
     reference = proxy.proxy_features / (inst.train_horizon + 1)
     options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
 
@@ -213,7 +218,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 resampled[key] = posterior.sample_joint_posterior(
                     evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
                     spec.prior_sigma, warmup=spec.warmup if initial is None else spec.warm_warmup,
-                    initial=initial, **options)
+                    initial=initial, observation_model=model, **options)
         return resampled[key]
 
     rob = PlanSettings(MAIN_BASELINE, reference)

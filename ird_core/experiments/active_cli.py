@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ird_core.posterior.calibration import resolve_prior_sigma
 from ird_core.experiments import active, active_report, parallel
 from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.report import RunRecord
@@ -37,8 +38,6 @@ from ird_core.worlds.lavaland import ALL_CONDITIONS
 
 __all__ = ["build_parser", "spec_settings", "run_active", "main"]
 
-#: The checkout (``--out``'s default lies in it).
-REPO_ROOT = Path(__file__).resolve().parents[2]
 #: How active.md and run.json name the program.
 COMMAND = "python scripts/run_active.py"
 
@@ -49,7 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--trials", type=int, default=100, help="paired trials per condition")
-    p.add_argument("--out", type=Path, default=REPO_ROOT / "docs" / "results" / "active")
+    p.add_argument("--out", type=Path, default=Path("docs") / "results" / "active",
+                   help="output folder, from the working directory (default docs/results/active: the "
+                        "checkout's results when run from its root)")
     p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
     p.add_argument("--conditions", nargs="+", default=list(ALL_CONDITIONS), choices=ALL_CONDITIONS)
     parallel.add_arguments(p)
@@ -59,6 +60,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--designer-beta", type=float, default=d.designer_beta)
     p.add_argument("--choice-beta", type=float, default=None, help="robot's answer rationality (default: designer's)")
     parallel.add_trial_arguments(p, d)
+    p.set_defaults(prior_sigma=None)  # None: the calibrated 1 / --temperature (ird_core.posterior.calibration)
+    p.add_argument("--temperature", type=float, default=d.temperature,
+                   help="the modelled designer's temperature (default: the calibrated designer's); without "
+                        "--prior-sigma the prior follows it, sigma = 1 / temperature")
     p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
     p.add_argument("--report-only", action="store_true",
@@ -72,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The ActiveSpec keywords of the flags."""
     return dict(size=args.size, horizon=args.horizon, obs_dim=args.obs_dim, num_samples=args.num_samples,
-                beta=args.beta, prior_sigma=args.prior_sigma, method=args.method, num_chains=args.num_chains,
+                beta=args.beta, prior_sigma=resolve_prior_sigma(args.prior_sigma, args.temperature), temperature=args.temperature, method=args.method,
+                num_chains=args.num_chains,
                 warmup=args.warmup, thin=args.thin, max_leapfrog=args.max_leapfrog, warm_warmup=args.warm_warmup,
                 query_counts=tuple(sorted(set(args.query_counts))), strategies=tuple(args.strategies),
                 num_options=args.num_options, designer_beta=args.designer_beta, choice_beta=args.choice_beta)

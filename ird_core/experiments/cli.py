@@ -48,7 +48,8 @@ file. A bad file: exit status 2 with the loader's message (file, key, value).
 
 Model and planner: --counts optimal|maxent and --temperature T choose the observation model
 (ird_core.posterior.ObservationModel: how the proxy's behaviour is counted; default maxent at
-T = 1); --risk min|cvar|mean_sd with --risk-level choose the main IRD planner's risk measure
+T = 0.2, the calibrated designer), and without --prior-sigma the prior follows the temperature,
+sigma = 1 / T (ird_core.posterior.calibration); --risk min|cvar|mean_sd with --risk-level choose the main IRD planner's risk measure
 (default min). --frontier adds, from every posterior, the per-step plan at every level of
 ird_core.experiments.controls.FRONTIER_RISKS; --controls adds the control planners (prior only,
 novelty-avoiding, Sample-Z's other counts reading, Sample-Z without its own term). Either writes
@@ -75,7 +76,10 @@ from typing import Any
 
 from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.chunks import load_chunks
+from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES
 from ird_core.experiments.summaries import aggregate
+from ird_core.planning.sample_scale import SAMPLE_SCALES
+from ird_core.posterior.calibration import calibrated_prior_sigma
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
@@ -85,8 +89,6 @@ __all__ = ["SPEC_FLAGS", "SHARED_SAMPLER_FLAGS", "DEFAULT_TRIALS", "build_parser
            "z_samplers", "spec_settings", "trial_settings", "world_conditions", "run_local", "run_dask",
            "run_experiment", "rewrite_report", "main"]
 
-#: The checkout (``--out``'s default lies in it).
-REPO_ROOT = Path(__file__).resolve().parents[2]
 #: TrialSpec fields set by a flag of the same name (dashes for underscores); --quick's fields among them.
 SPEC_FLAGS: tuple[str, ...] = (
     "size", "horizon", "obs_dim", "num_samples", "beta", "prior_sigma", "num_chains", "warmup", "thin",
@@ -110,7 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--trials", type=int, default=None, help=f"trials per condition (default {DEFAULT_TRIALS})")
-    p.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "experiments")
+    p.add_argument("--out", type=Path, default=Path("out") / "experiments",
+                   help="output folder, from the working directory (default out/experiments)")
     p.add_argument("--seed", type=int, default=0, help="base seed: trial i uses instance seed SEED + i")
     parallel.add_arguments(p)
     p.add_argument("--world", type=Path, default=None, metavar="FILE",
@@ -121,7 +124,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--counts", choices=PROXY_COUNTS, default=None,
                    help="the observation model's counts: optimal-path or MaxEnt (docs/modelling.md)")
     p.add_argument("--temperature", type=float, default=None,
-                   help="the MaxEnt designer's temperature (counts maxent; default 1)")
+                   help="the modelled designer's temperature (default 0.2, the calibrated designer); "
+                        "without --prior-sigma the prior follows it: sigma = 1 / temperature")
+    p.add_argument("--sample-scale", choices=SAMPLE_SCALES, default=None,
+                   help="how the IRD planners scale posterior samples: by their reward range over the training "
+                        "maps (training_spread, the default: ird_core.planning.sample_scale) or not at all (none)")
     p.add_argument("--risk", choices=RISK_MEASURES, default=None, help="the main IRD planner's risk measure")
     p.add_argument("--risk-level", type=float, default=None,
                    help="its level: alpha in (0, 1] for cvar, lambda >= 0 for mean_sd")
@@ -133,6 +140,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--novelty-feature", action=argparse.BooleanOptionalAction, default=None,
                    help="add the hypothesis feature 'novel' (1 on test cells unlike every training cell, 0 in "
                         "training; ird_core.experiments.novelty_hypothesis) to IRD's posterior and plans")
+    p.add_argument("--hypothesis", choices=HYPOTHESES, default=None,
+                   help="IRD's hypothesis space in the latent conditions: linear in the observations (the paper's, "
+                        "default) or rff, random Fourier features of an RBF kernel on them "
+                        "(ird_core.experiments.kernel_hypothesis)")
+    p.add_argument("--rff-features", type=int, default=None, metavar="D",
+                   help=f"random features of --hypothesis rff (default {DEFAULT_RFF_FEATURES})")
     p.add_argument("--quick", action="store_true",
                    help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
     parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
@@ -159,6 +172,9 @@ def resolve_spec_flags(args: argparse.Namespace) -> None:
     for field in SPEC_FLAGS:
         if getattr(args, field) is None:
             setattr(args, field, QUICK[field] if args.quick and field in QUICK else getattr(defaults, field))
+    if "prior_sigma" not in args.explicit:  # the calibrated designer: sigma follows --temperature
+        temperature = defaults.temperature if getattr(args, "temperature", None) is None else args.temperature
+        args.prior_sigma = calibrated_prior_sigma(temperature)
 
 
 def _quick_samplers(args: argparse.Namespace) -> dict[str, None]:
@@ -199,8 +215,8 @@ def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
 
 
 #: TrialSpec fields set by an optional flag of the same name (None: the TrialSpec default).
-MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "risk", "risk_level", "frontier", "controls",
-                               "novelty_feature")
+MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "sample_scale", "risk", "risk_level", "frontier", "controls",
+                               "novelty_feature", "hypothesis", "rff_features")
 
 
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:

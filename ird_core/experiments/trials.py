@@ -63,9 +63,11 @@ import numpy as np
 
 from ird_core import mcmc, mdp, planning, posterior
 from ird_core.experiments.controls import control_results, frontier_results
+from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, hypothesis_instance
 from ird_core.experiments.novelty_hypothesis import with_novelty_feature
 from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
 from ird_core.planning.risk_measures import check_risk
+from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
 from ird_core.vocabulary import PROXY_COUNTS, Baseline, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland, world_file
 
@@ -213,7 +215,7 @@ class TrialSpec:
     obs_dim: int = 50
     num_samples: int = 64
     beta: float = 50.0
-    prior_sigma: float = 1.0
+    prior_sigma: "float | None" = None  # None: the calibrated 1 / temperature (posterior.calibration)
     num_chains: int = 4
     warmup: int = 50
     thin: int = 4
@@ -225,12 +227,15 @@ class TrialSpec:
     factorial: bool = True
     world: str = ""  # a world file: the trial's instance (size, horizon, obs_dim unused); "" = Lavaland
     counts: str = "maxent"  # the observation model's counts (posterior.ObservationModel)
-    temperature: float = 1.0  # the MaxEnt designer's temperature (counts "maxent")
+    temperature: float = posterior.CALIBRATED_TEMPERATURE  # the MaxEnt designer's temperature
     risk: str = "min"  # the main IRD planner's risk measure
     risk_level: float = math.nan  # its level (alpha of cvar, lambda of mean_sd)
     frontier: bool = False  # plan every risk level of FRONTIER_RISKS from every posterior
     controls: bool = False  # the control planners and posteriors (ird_core.experiments.controls)
+    sample_scale: str = "training_spread"  # the IRD plans' samples: "training_spread" (planning.sample_scale) or "none"
     novelty_feature: bool = False  # IRD's hypothesis features gain "novel" (experiments.novelty_hypothesis)
+    hypothesis: str = "linear"  # latent conditions: "rff" = random Fourier features (experiments.kernel_hypothesis)
+    rff_features: int = DEFAULT_RFF_FEATURES  # D of the "rff" hypothesis space
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
         4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
         check_every=CHECK_EVERY,
@@ -238,16 +243,24 @@ class TrialSpec:
     maxent_z_sampler: SamplerSettings | None = SamplerSettings(4, 50, 4, 16, 1000, check_every=CHECK_EVERY)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "prior_sigma", posterior.resolve_prior_sigma(self.prior_sigma, self.temperature))
         if not 1 <= self.factorial_samples <= self.num_samples:
             raise ValueError(f"factorial_samples must be in 1..num_samples={self.num_samples}, "
                              f"got {self.factorial_samples!r}")
         for method in self.z_methods:
             if method not in Z_METHODS:
                 raise ValueError(f"z_methods must be drawn from {Z_METHODS}, got {method!r}")
+        if self.sample_scale not in SAMPLE_SCALES:
+            raise ValueError(f"sample_scale must be one of {SAMPLE_SCALES}, got {self.sample_scale!r}")
         if self.counts not in PROXY_COUNTS:
             raise ValueError(f"counts must be one of {PROXY_COUNTS}, got {self.counts!r}")
         self.observation_model()
         check_risk(self.risk, None if self.risk == "min" else self.risk_level)
+        if self.hypothesis not in HYPOTHESES:
+            raise ValueError(f"hypothesis must be one of {HYPOTHESES}, got {self.hypothesis!r}")
+        if isinstance(self.rff_features, bool) or not isinstance(self.rff_features, (int, np.integer)) \
+                or self.rff_features < 1:
+            raise ValueError(f"rff_features must be an integer >= 1, got {self.rff_features!r}")
         limit = self.traj_work_limit
         if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
             raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
@@ -255,6 +268,13 @@ class TrialSpec:
     def observation_model(self, counts: str = "", own_term: bool = True) -> posterior.ObservationModel:
         """The posteriors' observation model (``counts`` overrides the spec's)."""
         return posterior.ObservationModel(counts or self.counts, self.temperature, own_term)
+
+    def planning_samples(self, inst: lavaland.LavalandInstance, samples: np.ndarray) -> np.ndarray:
+        """The samples the IRD planners use: ``samples`` in units of their training spread
+        (:func:`ird_core.planning.sample_scale.normalise_samples`), or unchanged with ``"none"``."""
+        if self.sample_scale == "none":
+            return samples
+        return normalise_samples(samples, [inst.train_features, *(w.features for w in inst.extra_training_worlds)])
 
     def main_risk(self) -> dict:
         """``plan_path``'s risk keywords of the main IRD planner."""
@@ -312,12 +332,14 @@ def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: st
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
     """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``; with
-    ``novelty_feature``, its hypothesis features gain the *novel* feature."""
+    ``novelty_feature``, its hypothesis features gain the *novel* feature; with ``hypothesis`` "rff",
+    the latent conditions' hypothesis features are random Fourier features (applied first)."""
     if spec.world:
         inst = world_file.load_world(spec.world)
     else:
         inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
                                       obs_dim=spec.obs_dim)
+    inst = hypothesis_instance(inst, spec.hypothesis, spec.rff_features)
     return with_novelty_feature(inst) if spec.novelty_feature else inst
 
 
@@ -342,14 +364,15 @@ def run_trial(spec: TrialSpec) -> list[TrialResult]:
         post = trial_posterior(spec, inst, method)
         seconds = time.perf_counter() - t0
         diag = (seconds, post.r_hat_max, post.acceptance_rate)
-        main = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
+        samples = spec.planning_samples(inst, post.samples)
+        main = planning.plan_path(test, samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
         results.append(TrialResult("main", spec.condition, spec.seed, f"ird_{method}", method,
                                    MAIN_GRANULARITY, MAIN_BASELINE, *outcome(inst, main.cells),
                                    main.objective, main.solver, False, *diag, main.cells))
         if spec.frontier:
             results += frontier_results(spec, inst, method, post, reference, diag)
         if spec.factorial:
-            plans = _factorial_plans(test, post.samples[: spec.factorial_samples], reference, spec.traj_work_limit)
+            plans = _factorial_plans(test, samples[: spec.factorial_samples], reference, spec.traj_work_limit)
             for (gran, base), (plan, fallback) in plans.items():
                 results.append(TrialResult("factorial", spec.condition, spec.seed, f"{method}/{gran}/{base}",
                                            method, gran, base, *outcome(inst, plan.cells), plan.objective,

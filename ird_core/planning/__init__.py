@@ -1,7 +1,8 @@
 """Literal and risk-averse planning against posterior samples (docs/spec.md section 4).
 
 Modules: ``planners`` (``plan_path``, baselines, objectives), ``arguments`` (the checks a caller
-can run before planning), ``risk`` (reward spread and risk map), ``trajectory_solver`` (the exact
+can run before planning), ``risk`` (reward spread and risk map), ``sample_scale`` (samples in
+units of their training spread), ``trajectory_solver`` (the exact
 trajectory mode) with ``trajectory_bounds`` (its DP tables), ``trajectory_limits`` (time and work
 limits) and ``trajectory_milp`` (its HiGHS MILP).
 """
@@ -19,6 +20,7 @@ from ird_core.planning.planners import (
     sample_cell_rewards,
 )
 from ird_core.planning.risk import reward_spread, risk_map
+from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples, training_spread, worst_step_by_terrain
 from ird_core.vocabulary import BASELINES, MODES, STATISTICS
 
 __all__ = [
@@ -39,4 +41,8 @@ __all__ = [
     "plan_path",
     "reward_spread",
     "risk_map",
+    "SAMPLE_SCALES",
+    "normalise_samples",
+    "training_spread",
+    "worst_step_by_terrain",
 ]

@@ -1,7 +1,8 @@
 """The IRD posterior over true reward weights (docs/spec.md sections 3 and 7).
 
 Modules: ``likelihoods`` (per-term log likelihoods and gradients, proxy feature counts),
-``evidence`` (proxy and choice observations, the joint posterior), ``proxy_terms`` (the one
+``calibration`` (the designer's temperature and the prior's scale, chosen together), ``evidence``
+(proxy and choice observations, the joint posterior), ``proxy_terms`` (the one
 builder of proxy observations), ``laplace`` (the sampler's start), ``warm_start``,
 ``run_until`` (extending chains until converged), ``sampler`` (``sample_joint_posterior``),
 ``result`` (``Posterior``), ``settings`` (``SamplerSettings``, the sampler's keyword record).
@@ -21,6 +22,12 @@ from ird_core.posterior.evidence import (
     log_posterior_grad,
     make_joint_model,
     make_posterior_model,
+)
+from ird_core.posterior.calibration import (
+    CALIBRATED_TEMPERATURE,
+    PRIOR_RULE,
+    calibrated_prior_sigma,
+    resolve_prior_sigma,
 )
 from ird_core.posterior.laplace import laplace_approximation
 from ird_core.posterior.likelihoods import (
@@ -74,6 +81,10 @@ from ird_core.posterior.settings import SamplerSettings
 __all__ = [
     "METHODS",
     "ObservationModel",
+    "CALIBRATED_TEMPERATURE",
+    "PRIOR_RULE",
+    "calibrated_prior_sigma",
+    "resolve_prior_sigma",
     "DEFAULT_OBSERVATION_MODEL",
     "MAXENT_OBSERVATION_MODEL",
     "behaviour_counts",

@@ -54,8 +54,9 @@ from ird_core.posterior.likelihoods import (
     sample_z_log_likelihood,
     sample_z_log_likelihood_and_grad,
 )
+from ird_core.posterior.calibration import resolve_prior_sigma
 from ird_core.posterior.observation_model import (
-    MAXENT_OBSERVATION_MODEL,
+    DEFAULT_OBSERVATION_MODEL,
     ObservationModel,
     own_counts,
     own_counts_and_ray,
@@ -202,7 +203,7 @@ class PosteriorModel:
     dim: int
     proxy_terms: tuple[ProxyTerm, ...] = ()
     choices: tuple[ChoiceObservation, ...] = ()
-    observation: ObservationModel = MAXENT_OBSERVATION_MODEL
+    observation: ObservationModel = DEFAULT_OBSERVATION_MODEL
 
     @property
     def train_mdp(self) -> GridMDP:
@@ -291,10 +292,10 @@ def _check_observations(observations: object, dim: "int | None") -> tuple[list, 
 
 
 def make_joint_model(observations: "Sequence[Observation]", beta: float, method: str,
-                     prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
+                     prior_sigma: "float | None" = None, proxy_samples: "np.ndarray | None" = None, *,
                      seed: int = 0, num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES,
                      dim: "int | None" = None,
-                     observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> PosteriorModel:
+                     observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> PosteriorModel:
     """Validate the arguments and precompute every ``phi~(w~)`` and (Sample-Z) ``phi_i``.
 
     Args:
@@ -302,7 +303,8 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
             (a single observation is accepted too). May be empty only when ``dim`` is given.
         beta: the proxies' rationality, finite ``>= 0`` (each choice carries its own).
         method: ``"maxent_z"`` or ``"sample_z"``.
-        prior_sigma: prior standard deviation, ``> 0``.
+        prior_sigma: prior standard deviation, ``> 0``; ``None``: the calibrated ``1 / temperature``
+            of ``observation_model`` (:mod:`ird_core.posterior.calibration`).
         proxy_samples: ``(N, d)`` Sample-Z proxy weights ``w_i``, shared by every training MDP;
             default ``proxy_prior_samples(num_proxy_samples, d, prior_sigma, seed)``. Drawn and
             planned only for proxy observations without ``proxy_sample_features``.
@@ -321,7 +323,7 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
         raise ValueError(f"observation_model: expected an ObservationModel, got {type(observation_model).__name__}")
     beta = check_real("beta", beta, positive=False)
     parse(ZMethod, method, "method")
-    sigma = check_real("prior_sigma", prior_sigma, positive=True)
+    sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, observation_model.temperature), positive=True)
     seed = check_int("seed", seed, 0)
     num_proxy_samples = check_int("num_proxy_samples", num_proxy_samples, 1)
     samples = None if proxy_samples is None else check_array("proxy_samples", proxy_samples, (None, dim))
@@ -347,7 +349,7 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
 
 
 def joint_log_posterior(weights: np.ndarray, observations: "Sequence[Observation]",
-                        beta: float, method: str, prior_sigma: float = 1.0,
+                        beta: float, method: str, prior_sigma: "float | None" = None,
                         proxy_samples: "np.ndarray | None" = None, *, seed: int = 0,
                         num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:
     """Unnormalised joint IRD log posterior of candidate weights (docs/spec.md section 7).
@@ -366,7 +368,7 @@ def joint_log_posterior(weights: np.ndarray, observations: "Sequence[Observation
 
 
 def joint_log_posterior_grad(weights: np.ndarray, observations: "Sequence[Observation]",
-                             beta: float, method: str, prior_sigma: float = 1.0,
+                             beta: float, method: str, prior_sigma: "float | None" = None,
                              proxy_samples: "np.ndarray | None" = None, *, seed: int = 0,
                              num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:
     """Gradient of ``joint_log_posterior``; ``(K, d) -> (K, d)`` (same arguments)."""
@@ -382,7 +384,7 @@ def joint_log_posterior_grad(weights: np.ndarray, observations: "Sequence[Observ
 
 
 def make_posterior_model(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float, method: str,
-                         prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
+                         prior_sigma: "float | None" = None, proxy_samples: "np.ndarray | None" = None, *,
                          proxy_features: "np.ndarray | None" = None,
                          proxy_sample_features: "np.ndarray | None" = None, seed: int = 0,
                          num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> PosteriorModel:
@@ -394,7 +396,7 @@ def make_posterior_model(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: fl
 
 
 def log_posterior(weights: np.ndarray, proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
-                  method: str, prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
+                  method: str, prior_sigma: "float | None" = None, proxy_samples: "np.ndarray | None" = None, *,
                   proxy_features: "np.ndarray | None" = None,
                   proxy_sample_features: "np.ndarray | None" = None, seed: int = 0,
                   num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:
@@ -426,7 +428,7 @@ def log_posterior(weights: np.ndarray, proxy_weights: np.ndarray, train_mdp: Gri
 
 
 def log_posterior_grad(weights: np.ndarray, proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float,
-                       method: str, prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
+                       method: str, prior_sigma: "float | None" = None, proxy_samples: "np.ndarray | None" = None, *,
                        proxy_features: "np.ndarray | None" = None,
                        proxy_sample_features: "np.ndarray | None" = None, seed: int = 0,
                        num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES) -> np.ndarray:

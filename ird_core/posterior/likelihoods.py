@@ -16,7 +16,7 @@ import numpy as np
 from scipy.special import softmax
 
 from ird_core.mdp import GridMDP
-from ird_core.posterior.observation_model import RAY_STEP, MAXENT_OBSERVATION_MODEL, ObservationModel, behaviour_counts
+from ird_core.posterior.observation_model import RAY_STEP, DEFAULT_OBSERVATION_MODEL, ObservationModel, behaviour_counts
 from ird_core.vocabulary import METHODS
 
 __all__ = [
@@ -235,7 +235,7 @@ PROXY_BATCH: int = 256
 
 def proxy_feature_counts(planning_mdp: GridMDP, proxy_weights: np.ndarray,
                          hypothesis_features: np.ndarray | None = None,
-                         model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
+                         model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> np.ndarray:
     """``phi~(w~)``: hypothesis-space feature counts of proxies' behaviour in their training MDP.
 
     The designer's proxy acts on the features it was written for (``planning_mdp.features``,
@@ -251,7 +251,7 @@ def proxy_feature_counts(planning_mdp: GridMDP, proxy_weights: np.ndarray,
         planning_mdp: the training MDP on the proxy's features, ``(H, W, p)``.
         proxy_weights: ``(K, p)`` (or ``(p,)`` for one proxy).
         hypothesis_features: ``(H, W, d)`` or ``None`` (= ``planning_mdp.features``).
-        model: the observation model (default: unit-temperature MaxEnt expectations).
+        model: the observation model (default: the calibrated designer's MaxEnt expectations).
 
     Returns:
         ``(K, d)`` (``(d,)`` for a ``(p,)`` input): counts over the ``T + 1`` states.

@@ -25,7 +25,8 @@ from ird_core.checks import check_int, check_real
 from ird_core.mdp import GridMDP
 from ird_core.posterior.evidence import ProxyObservation
 from ird_core.posterior.likelihoods import proxy_feature_counts, proxy_prior_samples
-from ird_core.posterior.observation_model import MAXENT_OBSERVATION_MODEL, ObservationModel
+from ird_core.posterior.calibration import resolve_prior_sigma
+from ird_core.posterior.observation_model import DEFAULT_OBSERVATION_MODEL, ObservationModel
 from ird_core.worlds.lavaland import LavalandInstance, TrainingWorld, train_mdp
 from ird_core.worlds.terrain import as_generator
 
@@ -33,7 +34,7 @@ __all__ = ["proxy_observation", "proxy_feature_expectations", "proxy_prior_featu
 
 
 def _counts(train: GridMDP, proxy_mdp: GridMDP | None, weights: np.ndarray,
-            model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
+            model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> np.ndarray:
     """(K, p) proxy weights -> (K, d) hypothesis-space counts in the training MDP."""
     if proxy_mdp is None:
         return proxy_feature_counts(train, weights, model=model)
@@ -41,11 +42,13 @@ def _counts(train: GridMDP, proxy_mdp: GridMDP | None, weights: np.ndarray,
 
 
 def _prior_counts(train: GridMDP, proxy_mdp: GridMDP | None, num: int,
-                  seed: int | np.random.Generator, prior_sigma: float,
-                  model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
-    """Sample-Z ``phi_i`` (num, d) of ``num`` proxies drawn from the prior in the proxy's space."""
+                  seed: int | np.random.Generator, prior_sigma: "float | None",
+                  model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> np.ndarray:
+    """Sample-Z ``phi_i`` (num, d) of ``num`` proxies drawn from the prior in the proxy's space
+    (``prior_sigma`` ``None``: the calibrated sigma of ``model``)."""
     num = check_int("num_proxy_samples", num, 1)
-    check_real("prior_sigma", prior_sigma, positive=True, ranged=False)
+    prior_sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, model.temperature), positive=True,
+                             ranged=False)
     space = train if proxy_mdp is None else proxy_mdp
     return _counts(train, proxy_mdp, proxy_prior_samples(num, space.num_features, prior_sigma, as_generator(seed)),
                    model)
@@ -58,8 +61,8 @@ def proxy_observation(
     proxy_mdp: GridMDP | None = None,
     num_proxy_samples: int | None = None,
     seed: int | np.random.Generator = 0,
-    prior_sigma: float = 1.0,
-    observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL,
+    prior_sigma: "float | None" = None,
+    observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL,
 ) -> ProxyObservation:
     """The :class:`ProxyObservation` of a proxy written for ``train_mdp``, with ``phi~(w~)`` computed.
 
@@ -72,7 +75,8 @@ def proxy_observation(
         num_proxy_samples: ``N``; when given, the observation carries its Sample-Z ``phi_i``
             ``(N, d)`` (prior proxies drawn in the proxy's space with ``seed``, ``prior_sigma``).
         seed: int seed or numpy Generator of the prior draws.
-        prior_sigma: prior standard deviation, ``> 0``.
+        prior_sigma: prior standard deviation, ``> 0``; ``None``: the calibrated sigma of
+            ``observation_model`` (:mod:`ird_core.posterior.calibration`).
         observation_model: how behaviour is counted (optimal path or MaxEnt expectations).
 
     Returns:
@@ -95,7 +99,7 @@ def _proxy_mdp(instance: LavalandInstance) -> GridMDP | None:
 
 
 def proxy_feature_expectations(instance: LavalandInstance,
-                               observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> np.ndarray:
+                               observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> np.ndarray:
     """The proxy's feature counts in the instance's training map, in the hypothesis space.
 
     The proxy's behaviour (MaxEnt by default, or its optimal path: ``observation_model``) is
@@ -109,10 +113,10 @@ def proxy_feature_expectations(instance: LavalandInstance,
     return _counts(train_mdp(instance), _proxy_mdp(instance), instance.proxy_weights[None], observation_model)[0]
 
 
-def _check_prior(num: int, prior_sigma: float) -> None:
+def _check_prior(num: int, prior_sigma: "float | None") -> None:
     if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or num < 1:
         raise ValueError(f"num must be an integer >= 1, got {num!r}")
-    if not np.isfinite(prior_sigma) or prior_sigma <= 0:
+    if prior_sigma is not None and (not np.isfinite(prior_sigma) or prior_sigma <= 0):
         raise ValueError(f"prior_sigma must be finite and > 0, got {prior_sigma!r}")
 
 
@@ -120,7 +124,7 @@ def proxy_prior_features(
     instance: LavalandInstance,
     num: int,
     seed: int | np.random.Generator,
-    prior_sigma: float = 1.0,
+    prior_sigma: "float | None" = None,
 ) -> np.ndarray:
     """Expected hypothesis-space feature counts of proxies drawn from the designer's prior.
 
@@ -132,7 +136,8 @@ def proxy_prior_features(
         instance: the Lavaland instance.
         num: number of proxies (>= 1).
         seed: int seed or numpy Generator.
-        prior_sigma: prior standard deviation (> 0).
+        prior_sigma: prior standard deviation (> 0); ``None``: the calibrated sigma of the
+            default observation model.
 
     Returns:
         (num, d).
@@ -156,8 +161,8 @@ def proxy_observations(
     instance: LavalandInstance,
     num_proxy_samples: int | None = None,
     seed: int = 0,
-    prior_sigma: float = 1.0,
-    observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL,
+    prior_sigma: "float | None" = None,
+    observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL,
 ) -> list[ProxyObservation]:
     """One :class:`ProxyObservation` per training world (the first, then
     ``instance.extra_training_worlds``), for ``sample_joint_posterior``.

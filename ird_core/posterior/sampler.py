@@ -28,7 +28,7 @@ from ird_core import mcmc
 from ird_core.checks import check_int, check_real
 from ird_core.mdp import GridMDP
 from ird_core.posterior.evidence import ChoiceObservation, PosteriorModel, ProxyObservation, make_joint_model
-from ird_core.posterior.observation_model import MAXENT_OBSERVATION_MODEL, ObservationModel
+from ird_core.posterior.observation_model import DEFAULT_OBSERVATION_MODEL, ObservationModel
 from ird_core.posterior.laplace import laplace_approximation
 from ird_core.posterior.likelihoods import DEFAULT_NUM_PROXY_SAMPLES
 from ird_core.posterior.result import R_HAT_CAP, R_HAT_CONVERGED, Posterior, pool_draws
@@ -85,7 +85,7 @@ def _warn_unconverged(posterior: Posterior, caller: str) -> None:
 
 
 def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta: float,
-                           method: str, num_samples: int, seed: int, prior_sigma: float = 1.0,
+                           method: str, num_samples: int, seed: int, prior_sigma: "float | None" = None,
                            proxy_samples: "np.ndarray | None" = None, *,
                            num_chains: int = DEFAULT_NUM_CHAINS, warmup: "int | None" = None,
                            thin: "int | None" = None, kernel: str = DEFAULT_KERNEL,
@@ -95,7 +95,7 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
                            initial: "Posterior | None" = None,
                            until_converged: "RunUntil | None" = None,
                            progress: "mcmc.ProgressFn | None" = None,
-                           observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> Posterior:
+                           observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> Posterior:
     """Draw ``num_samples`` weights from the joint IRD posterior with batched MCMC (docs/spec.md section 7).
 
     Args:
@@ -107,7 +107,8 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
         seed: ``>= 0``; seeds the default proxy samples (``proxy_prior_samples(N, d, sigma, seed)``,
             shared by every training MDP) and, through an independent stream, the chains.
             Same seed, same samples.
-        prior_sigma: prior standard deviation, ``> 0``.
+        prior_sigma: prior standard deviation, ``> 0``; ``None`` (default): the calibrated
+            ``1 / temperature`` of ``observation_model`` (:mod:`ird_core.posterior.calibration`).
         proxy_samples: ``(N, d)`` Sample-Z proxy weights, default drawn as above.
         num_chains: chains, run as one batch (``>= 2``).
         warmup: adaptation iterations per chain, discarded (``>= 0``; default per method,
@@ -240,14 +241,14 @@ def _target(model: PosteriorModel, kernel: str) -> mcmc.LogDensityFn:
 
 
 def _sample(observations: "Sequence[ProxyObservation | ChoiceObservation]", beta: float, method: str,
-            num_samples: int, seed: int, prior_sigma: float = 1.0, proxy_samples: "np.ndarray | None" = None, *,
+            num_samples: int, seed: int, prior_sigma: "float | None" = None, proxy_samples: "np.ndarray | None" = None, *,
             num_chains: int = DEFAULT_NUM_CHAINS, warmup: "int | None" = None, thin: "int | None" = None,
             kernel: str = DEFAULT_KERNEL, num_proxy_samples: int = DEFAULT_NUM_PROXY_SAMPLES,
             init: str = "laplace", init_scale: float = DEFAULT_INIT_SCALE, max_leapfrog: "int | None" = None,
             trajectory_length: "float | None" = None, warmup_max_leapfrog: "int | None" = None,
             initial: "Posterior | None" = None, until_converged: "RunUntil | None" = None,
             progress: "mcmc.ProgressFn | None" = None,
-            observation_model: ObservationModel = MAXENT_OBSERVATION_MODEL) -> Posterior:
+            observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> Posterior:
     """``sample_joint_posterior`` without the convergence warning (its callers emit it)."""
     started = time.monotonic()
     if until_converged is not None and not isinstance(until_converged, RunUntil):
@@ -298,7 +299,7 @@ def _posterior(run: SamplerRun, model: PosteriorModel, proxy: np.ndarray, num_sa
 
 
 def sample_posterior(proxy_weights: np.ndarray, train_mdp: GridMDP, beta: float, method: str,
-                     num_samples: int, seed: int, prior_sigma: float = 1.0,
+                     num_samples: int, seed: int, prior_sigma: "float | None" = None,
                      proxy_samples: "np.ndarray | None" = None, *,
                      proxy_features: "np.ndarray | None" = None,
                      proxy_sample_features: "np.ndarray | None" = None,

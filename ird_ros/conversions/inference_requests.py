@@ -30,7 +30,7 @@ from ird_core import checks
 from ird_core import planning as core_planning
 from ird_core.checks import MAX_ABS_FEATURE, MAX_ABS_WEIGHT
 from ird_core.mdp import GridMDP
-from ird_core.posterior import DEFAULT_OBSERVATION_MODEL, ObservationModel, SamplerSettings
+from ird_core.posterior import DEFAULT_OBSERVATION_MODEL, ObservationModel, SamplerSettings, calibrated_prior_sigma
 from ird_core.vocabulary import ZMethod, parse
 from ird_ros.conversions.grids import FeatureGridData, feature_grid_from_msg
 from ird_ros.conversions.sizes import check_grid_size, grid_is_empty
@@ -156,7 +156,8 @@ def infer_job(req: Any, limits: InferenceLimits) -> tuple[InferenceJob, tuple[st
     model = observation_model(req.proxy_counts, float(req.designer_temperature), limits.observation_model)
     train, proxy, start = _world_maps("", req)
     d = train.shape[2]
-    prior_sigma = float(limits.default_prior_sigma) if req.prior_sigma == 0.0 else float(req.prior_sigma)
+    # 0 = the node's default_prior_sigma; that 0 = the calibrated 1 / temperature (ird_core.posterior.calibration)
+    prior_sigma = float(req.prior_sigma) or float(limits.default_prior_sigma) or calibrated_prior_sigma(model.temperature)
     weights = checks.check_posterior_arguments(
         np.asarray(req.proxy_weights, dtype=np.float64), d if proxy is None else proxy.shape[2], req.beta,
         req.method, int(req.num_samples), prior_sigma)

@@ -117,6 +117,7 @@ class PlanJob:
     reference_job: ReferenceJob | None
     time_limit: float | None
     risk: Risk = MIN_RISK
+    scale_features: "np.ndarray | None" = None  # (H, W, d) training map: samples scaled by their spread on it
 
 
 def reference_features(job: ReferenceJob) -> np.ndarray:
@@ -142,8 +143,10 @@ def run_plan(job: PlanJob) -> PlanOutcome:
     reference = job.reference_features
     if reference is None and job.reference_job is not None:
         reference = reference_features(job.reference_job)
+    weights = job.weights if job.scale_features is None else planning.normalise_samples(job.weights,
+                                                                                          job.scale_features)
     try:
-        return PlanOutcome(planning.plan_path(job.mdp, job.weights, job.mode, job.baseline, reference,
+        return PlanOutcome(planning.plan_path(job.mdp, weights, job.mode, job.baseline, reference,
                                               risk=job.risk.measure, risk_level=job.risk.level,
                                               time_limit=job.time_limit))
     except planning.PlanningTimeout as exc:

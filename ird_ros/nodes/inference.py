@@ -28,7 +28,10 @@ stricter than ``ird_core.posterior.R_HAT_CONVERGED``).
 
 The observation model (docs/spec.md section 3): ``proxy_counts`` "" and ``designer_temperature``
 0 take the parameters ``proxy_counts`` and ``designer_temperature`` (defaults: the library's
-``ObservationModel()``); a bad value is refused naming the field. The model is passed to every
+``ObservationModel()``, the calibrated designer); a bad value is refused naming the field.
+``prior_sigma`` 0 takes the parameter ``default_prior_sigma``, whose 0 is the calibrated rule
+``sigma = 1 / temperature`` of the request's model (``ird_core.posterior.calibration``); the posterior
+message records the sigma used. The model is passed to every
 library call of the request, recorded in the posterior message (``proxy_counts``,
 ``designer_temperature``) and kept with the evidence: ``/ird/answer`` re-samples with the model
 of the posterior it extends. Sample-Z's own term stays the library's default (an experiment
@@ -122,8 +125,9 @@ class _MapMissing(ValueError):
 
 
 PARAMETERS: dict[str, Param] = {
-    "default_prior_sigma": Param(1.0, "Prior standard deviation used when a request has prior_sigma 0",
-                                 min_value=PRIOR_SIGMA_RANGE[0], max_value=PRIOR_SIGMA_RANGE[1]),
+    "default_prior_sigma": Param(0.0, "Prior standard deviation used when a request has prior_sigma 0 (0 = the "
+                                      "calibrated 1 / designer temperature of the request's observation model)",
+                                 min_value=0.0, max_value=PRIOR_SIGMA_RANGE[1]),
     "proxy_counts": Param(ObservationModel().counts, "Observation model of a request with proxy_counts \"\": "
                                                      "optimal (optimal-path counts) | maxent", choices=PROXY_COUNTS),
     "designer_temperature": Param(ObservationModel().temperature, "MaxEnt designer's temperature of a request with "

@@ -21,6 +21,11 @@ Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
   and its expected visits are contracted with the training map whose layers match the weights
   (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
   proxy's own weights).
+- Sample scale (parameter ``sample_scale``, default ``training_spread``): the samples of a
+  ``per_step`` or ``trajectory`` plan are divided by their reward range over the training map
+  whose layers match them (``/world/train_features``; ``ird_core.planning.sample_scale``), as
+  the experiments' IRD planners do. Without such a map the samples are planned unscaled and the
+  response's message says so (``sample_scale=none (...)``).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
 the field's name): sizes first, from the declared lengths before anything is decoded (the map's
@@ -102,6 +107,9 @@ PARAMETERS: dict[str, Param] = {
                          "(per_step only)", choices=RISK_MEASURES),
     "risk_level": Param(0.0, "Level of the default risk measure: cvar's alpha in (0, 1], mean_sd's lambda "
                              "(0 for min)", min_value=0.0, max_value=MAX_LAMBDA),
+    "sample_scale": Param("training_spread", "How IRD plans scale posterior samples: by their reward range over "
+                                             "the training map (training_spread) or not (none)",
+                          choices=planning.SAMPLE_SCALES),
     "risk_statistic": Param("std", "Spread statistic of the risk map", choices=planning.STATISTICS),
     "time_limit": Param(10.0, "Seconds a trajectory plan may take (label search and MILP); past it the best "
                               "path found is answered as a fallback", min_value=0.001),
@@ -144,7 +152,7 @@ class PlannerNode(GuardedNode):
         p = declare_all(self, PARAMETERS)
         self.replan_on_posterior = p["replan_on_posterior"]
         self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
-        self.risk_statistic = p["risk_statistic"]
+        self.risk_statistic, self.sample_scale = p["risk_statistic"], p["sample_scale"]
         try:  # the default measure, checked once (a bad pair would refuse every defaulted request)
             default = request_risk(p["risk"], p["risk_level"], MIN_RISK,
                                    self.default_mode if self.replan_on_posterior else None)
@@ -268,8 +276,9 @@ class PlannerNode(GuardedNode):
         if reference is None and baseline is Baseline.TRAINING_FEATURES:
             reference_job, used = self._reference_job(feature_names)
             sources.append("reference_features=" + "+".join(used))
+        scale_features = None if mode is PlanMode.LITERAL else self._scale_features(feature_names, sources)
         job = PlanJob(mdp=mdp, weights=weights, mode=mode, baseline=baseline, reference_features=reference,
-                      reference_job=reference_job, time_limit=time_limit, risk=risk)
+                      reference_job=reference_job, time_limit=time_limit, risk=risk, scale_features=scale_features)
         label = req.label or (mode.value if mode is PlanMode.LITERAL else f"ird_{mode.value}_{baseline.value}")
         return _Accepted(job=job, grid=grid, label=label, sources=tuple(sources))
 
@@ -333,6 +342,18 @@ class PlannerNode(GuardedNode):
                 sources.append(f"map={topic}@{self._stamps[topic]}")
                 return candidate
         raise ValueError(f"map: empty and no perceived test map fits {num_values} weight values")
+
+    def _scale_features(self, feature_names: tuple[str, ...], sources: list[str]) -> "np.ndarray | None":
+        """The training map the samples are scaled on (``sample_scale``), or ``None`` (unscaled;
+        ``sources`` then says why)."""
+        if self.sample_scale == "none":
+            return None
+        found = conv.first_with_layers(self.maps, (names.TOPIC_TRAIN_FEATURES,), feature_names)
+        if found is None:
+            sources.append("sample_scale=none (no training map with the weights' layers on /world/train_features)")
+            return None
+        sources.append(f"sample_scale=training_spread@{found[0]}@{self._stamps[found[0]]}")
+        return found[1].features.astype(np.float64)
 
     def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
         """The default reference features' inputs from the latest proxy and training maps, and

@@ -17,6 +17,9 @@ from ird_core.posterior import laplace
 from ird_core.posterior.evidence import make_joint_model
 from ird_core.worlds import lavaland
 
+#: The designer model the creased cases were found with: unit temperature (the prior is given as 1).
+UNIT = I.MAXENT_OBSERVATION_MODEL
+
 # A 2-d target with creases: a correlated product of Laplace densities, mode at (1, -1).
 _MIX = np.array([[1.0, 0.0], [0.7, 1.0]])
 _SCALE = np.array([3.0, 1.5])
@@ -65,8 +68,8 @@ def test_elliptical_posterior_matches_quadrature_in_2d(kernel: str) -> None:
     model = I.make_posterior_model(proxy, mdp, 10.0, "sample_z", 1.0, samples)
     want_mean, want_cov = quadrature_moments(model.log_density)
     chains, per_chain = 16, 125
-    post = I.sample_posterior(proxy, mdp, 10.0, "sample_z", chains * per_chain, seed=1, proxy_samples=samples,
-                              num_chains=chains, kernel=kernel)
+    post = I.sample_posterior(proxy, mdp, 10.0, "sample_z", chains * per_chain, seed=1, prior_sigma=1.0,
+                              proxy_samples=samples, num_chains=chains, kernel=kernel)
     assert post.converged and post.kernel == kernel
     draws = post.samples.reshape(per_chain, chains, 2).transpose(1, 0, 2)
     ess = mcmc.effective_sample_size(draws)
@@ -80,10 +83,11 @@ def test_elliptical_posterior_matches_quadrature_in_2d(kernel: str) -> None:
 
 def _creased_model(condition: str, size: int, horizon: int, beta: float, seed: int):
     inst = lavaland.make_instance(condition, seed, size=size, horizon=horizon, obs_dim=4)
-    return make_joint_model(I.proxy_observations(inst, 20, 3, 1.0), beta, "sample_z", 1.0)
+    return make_joint_model(I.proxy_observations(inst, 20, 3, 1.0, UNIT), beta, "sample_z", 1.0, observation_model=UNIT)
 
 
-# Cases where damped Newton stalls on a crease (found by search; each checked below).
+# Cases where damped Newton stalls on a crease (found by search under the unit-temperature designer
+# with a unit prior, UNIT; each checked below).
 STALLING = [("side_effects", 5, 6, 500.0, 0), ("side_effects", 5, 6, 500.0, 1), ("latent_raw", 15, 30, 50.0, 1)]
 
 
@@ -164,13 +168,14 @@ def test_the_mode_start_lets_short_chains_converge_on_a_creased_posterior(monkey
     # L-BFGS mode with profiled widths, 4 short chains of either kernel pass R-hat; from the
     # stalled Newton point the elliptical chains do not (seeded, so the values are fixed).
     inst = lavaland.make_instance("latent_raw", 1, size=15, horizon=30, obs_dim=4)
-    observations = I.proxy_observations(inst, 20, 3, 1.0)
-    settings = dict(num_chains=4, warmup=100, thin=4, max_leapfrog=32)
+    observations = I.proxy_observations(inst, 20, 3, 1.0, UNIT)
+    settings = dict(num_chains=4, warmup=100, thin=4, max_leapfrog=32, observation_model=UNIT)
 
     def r_hat(kernel: str) -> float:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            return I.sample_joint_posterior(observations, 50.0, "sample_z", 64, 0, kernel=kernel, **settings).r_hat_max
+            return I.sample_joint_posterior(observations, 50.0, "sample_z", 64, 0, 1.0, kernel=kernel,
+                                            **settings).r_hat_max
 
     assert r_hat("hmc") <= 1.05 and r_hat("elliptical") <= 1.1
     monkeypatch.setattr(laplace, "_NEWTON_STALL", np.inf)

@@ -190,9 +190,12 @@ def test_at_least_ten_candidates_on_a_lavaland_map():
     from ird_core.worlds import lavaland
     for condition in ("side_effects", "reward_hacking", "pot_of_gold"):
         inst = lavaland.make_instance(condition, 1, size=15, horizon=30, obs_dim=10)
-        proxy, = posterior.proxy_observations(inst, None, 0, 1.0)
+        # The unit-temperature designer with a unit prior, the setting this bound was set for: the
+        # calibrated designer's tighter posterior gives 9 candidates in side_effects seed 1.
+        unit = posterior.MAXENT_OBSERVATION_MODEL
+        proxy, = posterior.proxy_observations(inst, None, 0, 1.0, observation_model=unit)
         post = posterior.sample_joint_posterior([proxy], 50.0, "maxent_z", 64, 0, 1.0, num_chains=4, warmup=50,
-                                                thin=4, max_leapfrog=16)
+                                                thin=4, max_leapfrog=16, observation_model=unit)
         plan = C.PlanSettings(MAIN_BASELINE, proxy.proxy_features / (inst.train_horizon + 1))
         found = C.query_candidates(lavaland.test_mdp(inst), post.samples, plan)
         # The samples alone plan few distinct paths; the rich set has at least ten.

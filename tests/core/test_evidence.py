@@ -25,6 +25,9 @@ from ird_core.mdp.enumeration import (
     trajectory_features,
 )
 
+#: The default (calibrated) designer's temperature: the library's behaviour counts are MaxEnt at it.
+TAU = I.DEFAULT_OBSERVATION_MODEL.temperature
+
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (2, 3), horizon: int = 2) -> GridMDP:
     rng = np.random.default_rng(seed)
@@ -40,7 +43,8 @@ def random_options(mdp: GridMDP, q: int, rng: np.random.Generator) -> np.ndarray
 
 def brute_joint(weights: np.ndarray, observations: list, beta: float, method: str, sigma: float,
                 proxy_samples: np.ndarray) -> np.ndarray:
-    """docs/spec.md section 7 written out with enumeration: prior + proxy terms + choice terms."""
+    """docs/spec.md section 7 written out with enumeration: prior + proxy terms + choice terms; the
+    designer's behaviour at the default temperature TAU."""
     total = -0.5 * np.sum(weights**2, axis=1) / sigma**2
     for obs in observations:
         if isinstance(obs, I.ChoiceObservation):
@@ -48,12 +52,12 @@ def brute_joint(weights: np.ndarray, observations: list, beta: float, method: st
             total = total + scores[:, obs.chosen] - logsumexp(scores, axis=1)
             continue
         mdp = obs.train_mdp
-        phi = brute_feature_expectations(mdp, obs.proxy_weights[None])[0]
+        phi = brute_feature_expectations(mdp, obs.proxy_weights[None] / TAU)[0]
         if method == "maxent_z":
             total = total + beta * (weights @ phi - brute_log_partition(mdp, weights))
         else:
-            own = np.sum(weights * brute_feature_expectations(mdp, weights), axis=1)
-            phi_i = brute_feature_expectations(mdp, proxy_samples)  # the same w_i in every MDP
+            own = np.sum(weights * brute_feature_expectations(mdp, weights / TAU), axis=1)
+            phi_i = brute_feature_expectations(mdp, proxy_samples / TAU)  # the same w_i in every MDP
             scores = np.concatenate([own[:, None], weights @ phi_i.T], axis=1)
             total = total + beta * weights @ phi - logsumexp(beta * scores, axis=1)
     return total
@@ -135,7 +139,7 @@ def test_supplied_proxy_sample_features_override_the_shared_samples() -> None:
     mdp = tiny_mdp(6)
     rng = np.random.default_rng(6)
     proxy, samples, weights = rng.normal(size=3), rng.normal(size=(8, 3)), rng.normal(size=(4, 3))
-    phi_i = brute_feature_expectations(mdp, samples)
+    phi_i = brute_feature_expectations(mdp, samples / TAU)
     a = I.joint_log_posterior(weights, [I.ProxyObservation(proxy, mdp)], 1.0, "sample_z", 1.0, samples)
     b = I.joint_log_posterior(weights, [I.ProxyObservation(proxy, mdp, proxy_sample_features=phi_i)],
                               1.0, "sample_z", 1.0, 5.0 * samples)
@@ -253,7 +257,7 @@ def test_joint_sampler_matches_quadrature_in_2d(method: str) -> None:
     observations, samples = joint_2d(21)
     want_mean, want_cov = brute_quadrature_moments(observations, 1.5, method, samples)
     chains = 16
-    post = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 1, proxy_samples=samples,
+    post = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 1, 1.0, samples,
                                     num_chains=chains)
     assert post.converged and (post.num_proxies, post.num_choices) == (2, 2)
     assert_moments(post, chains, want_mean, want_cov)
@@ -263,18 +267,18 @@ def test_joint_sampler_matches_quadrature_in_2d(method: str) -> None:
 def test_warm_started_resample_after_an_answer_matches_quadrature(method: str) -> None:
     observations, samples = joint_2d(22)
     chains = 16
-    before = I.sample_joint_posterior(observations[:3], 1.5, method, chains * 125, 1, proxy_samples=samples,
+    before = I.sample_joint_posterior(observations[:3], 1.5, method, chains * 125, 1, 1.0, samples,
                                       num_chains=chains)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no R-hat warning
-        after = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 2, proxy_samples=samples,
+        after = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 2, 1.0, samples,
                                          num_chains=chains, initial=before)
     assert after.warm_started and after.converged and after.r_hat_max <= I.R_HAT_CONVERGED
     assert after.warmup == I.DEFAULT_WARM_WARMUP[method] and np.all(np.isnan(after.mode))
     assert after.metric is not None and after.metric.shape == (2, 2)
     want_mean, want_cov = brute_quadrature_moments(observations, 1.5, method, samples)
     assert_moments(after, chains, want_mean, want_cov)
-    again = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 2, proxy_samples=samples,
+    again = I.sample_joint_posterior(observations, 1.5, method, chains * 125, 2, 1.0, samples,
                                      num_chains=chains, initial=before)
     np.testing.assert_array_equal(after.samples, again.samples)
 

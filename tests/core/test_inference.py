@@ -17,6 +17,9 @@ from ird_core.mdp import GridMDP, feature_expectations
 from ird_core.mdp.enumeration import brute_feature_expectations, brute_log_partition
 from ird_core.worlds import lavaland
 
+#: The default (calibrated) designer's temperature: the library's behaviour counts are MaxEnt at it.
+TAU = I.DEFAULT_OBSERVATION_MODEL.temperature
+
 
 def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (3, 3), horizon: int = 3) -> GridMDP:
     rng = np.random.default_rng(seed)
@@ -26,13 +29,14 @@ def tiny_mdp(seed: int, d: int = 3, shape: tuple[int, int] = (3, 3), horizon: in
 
 def brute_log_posterior(weights: np.ndarray, proxy: np.ndarray, mdp: GridMDP, beta: float, method: str,
                         sigma: float, proxy_samples: np.ndarray) -> np.ndarray:
-    """docs/spec.md section 3 with every phi~ and log Z from enumerating all trajectories."""
-    phi_proxy = brute_feature_expectations(mdp, proxy[None])[0]
+    """docs/spec.md section 3 with every phi~ and log Z from enumerating all trajectories; the
+    designer's behaviour (phi~, the phi_i, the own term) at the default temperature TAU."""
+    phi_proxy = brute_feature_expectations(mdp, proxy[None] / TAU)[0]
     prior = -0.5 * np.sum(weights**2, axis=1) / sigma**2
     if method == "maxent_z":
         return beta * (weights @ phi_proxy - brute_log_partition(mdp, weights)) + prior
-    own = brute_feature_expectations(mdp, weights)
-    phi_i = brute_feature_expectations(mdp, proxy_samples)
+    own = brute_feature_expectations(mdp, weights / TAU)
+    phi_i = brute_feature_expectations(mdp, proxy_samples / TAU)
     scores = np.concatenate([np.sum(weights * own, axis=1)[:, None], weights @ phi_i.T], axis=1)
     return beta * weights @ phi_proxy - logsumexp(beta * scores, axis=1) + prior
 
@@ -75,7 +79,7 @@ def test_maxent_gradient_formula() -> None:
     rng = np.random.default_rng(8)
     proxy, weights = rng.normal(size=3), rng.normal(size=(3, 3))
     grad = I.log_posterior_grad(weights, proxy, mdp, 1.5, "maxent_z", 0.5)
-    want = (1.5 * (brute_feature_expectations(mdp, proxy[None]) - brute_feature_expectations(mdp, weights))
+    want = (1.5 * (brute_feature_expectations(mdp, proxy[None] / TAU) - brute_feature_expectations(mdp, weights))
             - weights / 0.25)
     np.testing.assert_allclose(grad, want, rtol=1e-8, atol=1e-10)
 
@@ -130,8 +134,8 @@ def test_supplied_features_override_computation() -> None:
     mdp = tiny_mdp(9)
     rng = np.random.default_rng(9)
     proxy, samples, weights = rng.normal(size=3), rng.normal(size=(4, 3)), rng.normal(size=(3, 3))
-    phi = feature_expectations(mdp, proxy[None])[0]
-    phi_i = feature_expectations(mdp, samples)
+    phi = feature_expectations(mdp, proxy[None] / TAU)[0]
+    phi_i = feature_expectations(mdp, samples / TAU)
     for method in I.METHODS:
         a = I.log_posterior(weights, proxy, mdp, 1.0, method, 1.0, samples)
         b = I.log_posterior(weights, np.zeros(3), mdp, 1.0, method, 1.0, proxy_features=phi,
@@ -225,8 +229,8 @@ def test_sampler_matches_quadrature_in_2d(method: str, beta: float) -> None:
     proxy, samples = np.array([0.8, -0.5]), rng.normal(size=(20, 2))
     want_mean, want_cov = posterior_moments(mdp, proxy, beta, method, samples)
     chains, per_chain = 16, 125
-    post = I.sample_posterior(proxy, mdp, beta, method, chains * per_chain, seed=1, proxy_samples=samples,
-                              num_chains=chains)
+    post = I.sample_posterior(proxy, mdp, beta, method, chains * per_chain, seed=1, prior_sigma=1.0,
+                              proxy_samples=samples, num_chains=chains)
     assert post.samples.shape == (chains * per_chain, 2) and post.converged
     draws = post.samples.reshape(per_chain, chains, 2).transpose(1, 0, 2)  # draw-major pooling
     sd = np.sqrt(np.diag(want_cov))
@@ -266,7 +270,7 @@ def test_posterior_record() -> None:
     post = I.sample_posterior(np.array([0.5, -0.2, 0.1]), mdp, 2.0, "sample_z", 101, seed=2, num_chains=4,
                               thin=2, warmup=40, progress=lambda s, t: seen.append((s, t)))
     assert post.samples.shape == (101, 3) and post.num_samples == 101
-    assert (post.method, post.beta, post.prior_sigma, post.seed, post.num_chains) == ("sample_z", 2.0, 1.0, 2, 4)
+    assert (post.method, post.beta, post.prior_sigma, post.seed, post.num_chains) == ("sample_z", 2.0, 1 / TAU, 2, 4)
     assert post.num_proxy_samples == I.DEFAULT_NUM_PROXY_SAMPLES and post.kernel == I.DEFAULT_KERNEL
     assert 0.0 < post.acceptance_rate <= 1.0 and post.r_hat.shape == (3,) and post.ess.shape == (3,)
     assert post.r_hat_max == post.r_hat.max() and post.ess_min == post.ess.min()

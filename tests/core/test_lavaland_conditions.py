@@ -22,6 +22,9 @@ from ird_core.worlds.terrain import SAFE_TERRAINS, Terrain
 
 SEEDS = range(4)
 
+#: The default (calibrated) designer's temperature: the library's behaviour counts are MaxEnt at it.
+TAU = posterior.DEFAULT_OBSERVATION_MODEL.temperature
+
 
 @pytest.fixture(scope="module")
 def instances() -> dict[tuple[str, int], L.LavalandInstance]:
@@ -305,9 +308,9 @@ def brute_expected_features(plan_features: np.ndarray, weights: np.ndarray,
 def test_proxy_feature_expectations_match_enumeration(condition: str, seed: int) -> None:
     inst = L.make_instance(condition, seed, size=3, horizon=3, obs_dim=5)
     assert len(enumerate_paths(3, 3, inst.train_start, 3)) > 20
-    expected = brute_expected_features(inst.proxy_train_features, inst.proxy_weights,
+    expected = brute_expected_features(inst.proxy_train_features, inst.proxy_weights / TAU,
                                        inst.train_features, inst.train_start, inst.train_horizon)
-    got = posterior.proxy_feature_expectations(inst)
+    got = posterior.proxy_feature_expectations(inst)  # the default (calibrated) designer's counts
     assert got.shape == (inst.num_features,)
     assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
 
@@ -320,7 +323,7 @@ def test_proxy_prior_features_match_enumeration(condition: str) -> None:
     assert got.shape == (num, inst.num_features)
     weights = sigma * np.random.default_rng(9).standard_normal((num, len(inst.proxy_feature_names)))
     for k in range(num):
-        expected = brute_expected_features(inst.proxy_train_features, weights[k],
+        expected = brute_expected_features(inst.proxy_train_features, weights[k] / TAU,
                                            inst.train_features, inst.train_start, inst.train_horizon)
         assert np.allclose(got[k], expected, rtol=1e-9, atol=1e-12)
     assert np.array_equal(got, posterior.proxy_prior_features(inst, num, 9, prior_sigma=sigma))
@@ -330,8 +333,9 @@ def test_proxy_prior_features_match_enumeration(condition: str) -> None:
 def test_proxy_prior_features_batches_consistently() -> None:
     inst = L.make_instance("side_effects", 0, size=4, horizon=4)
     many = posterior.proxy_prior_features(inst, 300, 1)  # more than one internal batch
-    weights = np.random.default_rng(1).standard_normal((300, 4))
-    direct = mdp.feature_expectations(L.train_mdp(inst), weights)
+    sigma = posterior.calibrated_prior_sigma(TAU)  # the default prior
+    weights = sigma * np.random.default_rng(1).standard_normal((300, 4))
+    direct = mdp.feature_expectations(L.train_mdp(inst), weights / TAU)
     assert np.allclose(many, direct, rtol=1e-12)
     # Indicator features: every proxy's expected counts sum to T + 1 visited states.
     assert np.allclose(many.sum(axis=1), inst.train_horizon + 1)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
+from ird_core.posterior.calibration import CALIBRATED_TEMPERATURE
 from ird_core import posterior
 from ird_core.mdp import GridMDP, optimal_path
 from ird_core.mdp.enumeration import all_trajectories, trajectory_features
@@ -74,10 +75,12 @@ def test_maxent_counts_at_a_temperature_are_the_brute_force_expectations(tempera
                                brute_maxent_counts(mdp, weights / temperature), rtol=1e-9, atol=1e-10)
 
 
-def test_the_maxent_reading_at_unit_temperature_is_the_default_counts() -> None:
+def test_the_default_counts_are_the_calibrated_designers_maxent_counts() -> None:
     mdp, weights = tiny(6)
-    np.testing.assert_array_equal(proxy_feature_counts(mdp, weights),
-                                  proxy_feature_counts(mdp, weights, model=ObservationModel("maxent", 1.0)))
+    calibrated = ObservationModel("maxent", CALIBRATED_TEMPERATURE)
+    np.testing.assert_array_equal(proxy_feature_counts(mdp, weights), proxy_feature_counts(mdp, weights, model=calibrated))
+    assert not np.allclose(proxy_feature_counts(mdp, weights),
+                           proxy_feature_counts(mdp, weights, model=ObservationModel("maxent", 1.0)))
 
 
 def brute_sample_z(w: np.ndarray, proxy: np.ndarray, samples: np.ndarray, mdp: GridMDP, beta: float,

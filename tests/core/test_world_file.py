@@ -247,16 +247,17 @@ def test_two_training_worlds_enter_the_joint_posterior(method: str) -> None:
     np.testing.assert_allclose(joint, posterior.joint_log_posterior(weights, by_hand, beta, method, **kw), rtol=1e-12)
     # Independent evidence: joint = posterior(world 1) + posterior(world 2) - prior.
     single = [posterior.joint_log_posterior(weights, [o], beta, method, **kw) for o in observations]
-    prior = posterior.log_prior(weights, 1.0)
+    sigma = posterior.calibrated_prior_sigma(posterior.CALIBRATED_TEMPERATURE)  # the default prior
+    prior = posterior.log_prior(weights, sigma)
     np.testing.assert_allclose(joint - joint[0], (single[0] + single[1] - prior) - (single[0] + single[1] - prior)[0],
                                rtol=1e-9, atol=1e-9)
     # The first world has no grass: its likelihood ignores the grass weight; the second's does not.
     shifted = weights.copy()
     shifted[:, TERRAIN_NAMES.index("grass")] += 1.0
-    first = [posterior.joint_log_posterior(w, observations[:1], beta, method, **kw) - posterior.log_prior(w, 1.0)
+    first = [posterior.joint_log_posterior(w, observations[:1], beta, method, **kw) - posterior.log_prior(w, sigma)
              for w in (weights, shifted)]
     np.testing.assert_allclose(first[1] - first[1][0], first[0] - first[0][0], atol=1e-9)
-    both = [posterior.joint_log_posterior(w, observations, beta, method, **kw) - posterior.log_prior(w, 1.0)
+    both = [posterior.joint_log_posterior(w, observations, beta, method, **kw) - posterior.log_prior(w, sigma)
             for w in (weights, shifted)]
     assert np.max(np.abs((both[1] - both[1][0]) - (both[0] - both[0][0]))) > 1e-3
 
