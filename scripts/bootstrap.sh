@@ -83,7 +83,8 @@ else
   say "requirements: pip install -r requirements.txt ($(grep -c '^[A-Za-z]' "$ROOT/requirements.txt") pinned packages: the ROS 2 Jazzy wheels, numpy, scipy, ...; minutes the first time)"
   run_logged pip-install "$PY" -m pip install --disable-pip-version-check --no-input \
     -r "$ROOT/requirements.txt"
-  rm -f "$STAMPS/ird_msgs" "$STAMPS/project"   # rebuild against the new wheels
+  # ird_msgs is rebuilt (step 4) only if a pin it builds against changed (its stamp hashes them),
+  # not for a new test plugin: a rebuild removes ird_msgs for a while under running tests.
   stamp_set requirements "$REQ_HASH"
 fi
 
@@ -100,7 +101,11 @@ else
 fi
 
 # --- 4. ird_msgs ------------------------------------------------------------------
-MSGS_HASH="$( { (cd "$ROOT" && find msgs_config/ird_msgs -type f -print0) | hash_files; echo "$REQ_HASH"; } \
+# What ird_msgs is built against: the ROS wheels, numpy (rosidl's Python typesupport), the
+# rosidl generators' own dependencies, and the interpreter.
+MSGS_PINS_HASH="$( { grep -E '^(ros-|numpy==|catkin-pkg==|empy==|lark-parser==)' "$ROOT/requirements.txt" | LC_ALL=C sort; \
+  echo "$PY_TAG"; } | sha256sum | cut -d' ' -f1)"
+MSGS_HASH="$( { (cd "$ROOT" && find msgs_config/ird_msgs -type f -print0) | hash_files; echo "$MSGS_PINS_HASH"; } \
   | sha256sum | cut -d' ' -f1)"
 if stamp_ok ird_msgs "$MSGS_HASH"; then
   say "ird_msgs: up to date"

@@ -1,7 +1,8 @@
 """The README and the docs pages say true things:
 
 - every code block marked ``python runnable`` runs as it is, alone, in an empty folder, and prints
-  exactly the ``text output`` block that follows it (if one does);
+  exactly the ``text output`` block that follows it (if one does), with the reference numerics
+  (``REFERENCE_NUMERICS``: the same on every x86-64 machine with AVX2, whatever its load);
 - every repository path they name (a Markdown link or image, or a path like ``scripts/demo.sh``
   in the text or a code block) exists.
 
@@ -10,6 +11,7 @@ Pages that a run writes (``docs/results/``) and the build output are not read.
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -28,6 +30,25 @@ REPO_PATH = re.compile(r"(?<![\w./$~-])((?:\.ci|docs|ird_core|ird_ros|scripts|te
 TOP_FILES = re.compile(r"(?<![\w./-])(README\.md|CHANGELOG\.md|requirements(?:-docs)?\.txt|pyproject\.toml)(?![\w-])")
 # Named outputs (written by a run or a build, not committed) and placeholders.
 NOT_FILES = ("docs/_build", "__pycache__", "worlds/exported")
+
+# The pages' printed numbers come from seeded runs with deterministic bounds (no wall-clock
+# budget decides them), but MCMC amplifies the last bits of floating-point arithmetic, and
+# OpenBLAS and numpy pick their kernels by CPU: an AVX-512 machine prints other R-hats (and
+# another designer's answer) than an AVX2 one. So the blocks run with OpenBLAS's Haswell (AVX2)
+# kernels, numpy's AVX2 loops and one BLAS thread, which every x86-64 machine since 2013 has
+# (docs/library.md says so where it prints them).
+REFERENCE_NUMERICS = {
+    "OPENBLAS_CORETYPE": "Haswell",
+    "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+    "OPENBLAS_NUM_THREADS": "1",
+}
+
+
+def run_block(code: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run one runnable block as a reader would (a fresh interpreter in ``cwd``), with the
+    reference numerics."""
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout, env={**os.environ, **REFERENCE_NUMERICS})
 
 
 def runnable_blocks(text: str) -> list[tuple[str, str | None]]:
@@ -93,8 +114,7 @@ RUNNABLE = [(page, i, code, output) for page in PAGES
                          ids=[f"{p.relative_to(ROOT)}#{i}" for p, i, _, _ in RUNNABLE])
 def test_runnable_block_runs_and_prints_what_the_page_says(page: Path, index: int, code: str, output: str | None,
                                                            tmp_path: Path) -> None:
-    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
-                          timeout=600)
+    done = run_block(code, tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
     if output is not None:
         assert done.stdout.rstrip("\n").splitlines() == output.rstrip("\n").splitlines()

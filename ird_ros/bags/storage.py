@@ -26,6 +26,8 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from ird_ros.resources import msg_root
+
 __all__ = [
     "REPO_MSG_ROOT",
     "BagMessage",
@@ -40,8 +42,9 @@ __all__ = [
     "summarize",
 ]
 
-REPO_MSG_ROOT = Path(__file__).resolve().parents[2] / "msgs_config"
-"""Folder holding the repository's interface packages (``<pkg>/msg/*.msg``)."""
+REPO_MSG_ROOT = msg_root()
+"""Folder holding the repository's interface packages (``<pkg>/msg/*.msg``): ``msgs_config``, as
+package data of ``ird_ros`` (``ird_ros.resources``)."""
 
 
 # --------------------------------------------------------------------------- types

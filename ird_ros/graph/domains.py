@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping, MutableMapping
 
+from ird_ros.resources import dds_profile
+
 __all__ = [
     "DDS_NETWORK_VAR",
     "DDS_PROFILE",
@@ -63,8 +65,9 @@ DOMAIN_ID_MAX = 101
 DOMAIN_LOCK_DIR = Path(os.environ.get("IRD_DOMAIN_LOCK_DIR", "/tmp/ird_ros_domains"))
 """Where the per-domain lock files live (shared with scripts/lib/ros_env.sh)."""
 
-DDS_PROFILE = Path(__file__).resolve().parents[2] / "msgs_config" / "dds" / "fastdds_localhost.xml"
-"""The loopback-only Fast DDS profile (see the module docstring)."""
+DDS_PROFILE = dds_profile()
+"""The loopback-only Fast DDS profile (see the module docstring): package data of ``ird_ros``
+(``ird_ros.resources``), so an installed copy finds it from any working directory."""
 
 DDS_PROFILE_VAR = "FASTRTPS_DEFAULT_PROFILES_FILE"
 """The variable Fast DDS 2.14 reads its default profile file from (FASTDDS_... is 3.x's)."""
