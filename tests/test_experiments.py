@@ -231,9 +231,9 @@ def test_factorial_granularities_share_the_first_samples():
     reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
     by = {r.planner: r for r in ex.run_trial(spec)}
     for z in spec.z_methods:
-        samples = trials.trial_posterior(spec, inst, z).samples[: spec.factorial_samples]
-        assert by[f"ird_{z}"].cells == planning.plan_path(test, trials.trial_posterior(spec, inst, z).samples, "per_step",
-                                                          ex.MAIN_BASELINE, reference).cells
+        scaled = spec.planning_samples(inst, trials.trial_posterior(spec, inst, z).samples)  # as the planners see them
+        samples = scaled[: spec.factorial_samples]
+        assert by[f"ird_{z}"].cells == planning.plan_path(test, scaled, "per_step", ex.MAIN_BASELINE, reference).cells
         for base in ex.BASELINES:
             step, traj = by[f"{z}/per_step/{base}"], by[f"{z}/trajectory/{base}"]
             assert step.cells == planning.plan_path(test, samples, "per_step", base, reference).cells

@@ -98,12 +98,13 @@ def diagnose(spec: TrialSpec, method: str) -> ScaleDiagnosis:
     post = trial_posterior(spec, inst, method)
     seconds = time.perf_counter() - start
     reference = posterior.proxy_feature_expectations(inst, spec.observation_model()) / (inst.train_horizon + 1)
-    plan = planning.plan_path(test, post.samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
+    samples = spec.planning_samples(inst, post.samples)  # as the trial's IRD planner scales them
+    plan = planning.plan_path(test, samples, MAIN_GRANULARITY, MAIN_BASELINE, reference, **spec.main_risk())
     labels = inst.test_labels
     values = lava_values(inst.test_features, labels, post.samples)
     proxy_value = float(lava_values(inst.proxy_test_features, labels, inst.proxy_weights)[0])
     on_lava = [labels[r, c] == Terrain.LAVA for r, c in plan.cells]
-    step_reward = planning.per_step_reward(test, post.samples, MAIN_BASELINE, reference)
+    step_reward = planning.per_step_reward(test, samples, MAIN_BASELINE, reference)
     lava = labels == Terrain.LAVA
     return ScaleDiagnosis(
         condition=spec.condition, seed=spec.seed, size=spec.size, horizon=spec.horizon, beta=spec.beta,

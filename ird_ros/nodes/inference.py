@@ -26,16 +26,12 @@ spent after ... iterations per chain, R-hat ... (target <= 1.05), ESS ... (targe
 posterior message's ``converged`` is the sampler's verdict (with ``until_converged`` its target,
 stricter than ``ird_core.posterior.R_HAT_CONVERGED``).
 
-The observation model (docs/spec.md section 3): ``proxy_counts`` "" and ``designer_temperature``
-0 take the parameters ``proxy_counts`` and ``designer_temperature`` (defaults: the library's
-``ObservationModel()``, the calibrated designer); a bad value is refused naming the field.
-``prior_sigma`` 0 takes the parameter ``default_prior_sigma``, whose 0 is the calibrated rule
-``sigma = 1 / temperature`` of the request's model (``ird_core.posterior.calibration``); the posterior
-message records the sigma used. The model is passed to every
-library call of the request, recorded in the posterior message (``proxy_counts``,
-``designer_temperature``) and kept with the evidence: ``/ird/answer`` re-samples with the model
-of the posterior it extends. Sample-Z's own term stays the library's default (an experiment
-control, not a service field).
+The observation model (docs/spec.md section 3): ``proxy_counts`` "" and ``designer_temperature`` 0 take
+the parameters of those names (defaults: ``ObservationModel()``, the calibrated designer); ``prior_sigma``
+0 takes ``default_prior_sigma``, whose 0 is ``1 / temperature`` (``ird_core.posterior.calibration``). A bad
+value is refused naming the field. The model is passed to every library call of the request, recorded
+in the posterior message and kept with the evidence (``/ird/answer`` re-samples with it). Sample-Z's
+own term stays the library's default (an experiment control, not a service field).
 
 The proxy map (latent_classifier): with ``proxy_map`` non-empty, the proxy weights apply to
 ``proxy_map``'s layers (same grid as ``training_map``).

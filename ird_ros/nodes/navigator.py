@@ -58,6 +58,10 @@ Choices (docs/spec.md section 6):
 The goal is a coroutine on the node's single-threaded executor (``run_node``): every service
 call and wait is awaited, never blocking, so subscriptions, cancel requests and parameter services
 keep being served; the action server and the clients are in one reentrant callback group.
+
+Longer than 450 lines: one goal's whole life (pre-flight limits, inference, questions, plan,
+drive, cancel, the outstanding requests a cancel leaves) runs in this node's callbacks; the
+decisions that need no ROS are in ``ird_ros.jobs.navigation``.
 """
 
 from __future__ import annotations

@@ -21,11 +21,9 @@ Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
   and its expected visits are contracted with the training map whose layers match the weights
   (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
   proxy's own weights).
-- Sample scale (parameter ``sample_scale``, default ``training_spread``): the samples of a
-  ``per_step`` or ``trajectory`` plan are divided by their reward range over the training map
-  whose layers match them (``/world/train_features``; ``ird_core.planning.sample_scale``), as
-  the experiments' IRD planners do. Without such a map the samples are planned unscaled and the
-  response's message says so (``sample_scale=none (...)``).
+- ``sample_scale`` (default ``training_spread``): IRD plans divide each sample by its reward range
+  over ``/world/train_features`` (``ird_core.planning.sample_scale``); without that map they are
+  planned unscaled and the message says so (``sample_scale=none (...)``).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
 the field's name): sizes first, from the declared lengths before anything is decoded (the map's
@@ -107,8 +105,7 @@ PARAMETERS: dict[str, Param] = {
                          "(per_step only)", choices=RISK_MEASURES),
     "risk_level": Param(0.0, "Level of the default risk measure: cvar's alpha in (0, 1], mean_sd's lambda "
                              "(0 for min)", min_value=0.0, max_value=MAX_LAMBDA),
-    "sample_scale": Param("training_spread", "How IRD plans scale posterior samples: by their reward range over "
-                                             "the training map (training_spread) or not (none)",
+    "sample_scale": Param("training_spread", "IRD plans' samples scaled by their training reward range, or none",
                           choices=planning.SAMPLE_SCALES),
     "risk_statistic": Param("std", "Spread statistic of the risk map", choices=planning.STATISTICS),
     "time_limit": Param(10.0, "Seconds a trajectory plan may take (label search and MILP); past it the best "

@@ -90,8 +90,10 @@ def test_rob_executes_the_plan_and_judges_it_like_ird_core(mission: dict) -> Non
     # The planner sees the test map as published: float32 features.
     test_mdp = GridMDP(inst.test_features.astype(np.float32).astype(np.float64), inst.test_start,
                        inst.test_horizon)
-    expected = planning.plan_path(test_mdp, mission["posterior"].samples, "per_step",
-                                  "training_features", mission["reference"])
+    # ... and scales the samples by their range over the published (float32) training map.
+    scaled = planning.normalise_samples(mission["posterior"].samples,
+                                        inst.train_features.astype(np.float32).astype(np.float64))
+    expected = planning.plan_path(test_mdp, scaled, "per_step", "training_features", mission["reference"])
     cells = mission["plan_cells"]
     assert tuple(cells) == tuple(expected.cells)
     final = mission["final"]

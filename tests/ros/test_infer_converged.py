@@ -27,6 +27,8 @@ PARAMS = str(ROOT / "msgs_config" / "params" / "graph.yaml")
 # fixed-length run (120 iterations per chain) of the request below has split R-hat 1.135.
 SAMPLER = dict(num_chains=4, warmup=5, num_proxy_samples=16)
 NUM_SAMPLES, SEED, BETA = 12, 1, 2.0
+#: The unit-temperature designer with a unit prior (given in the request): the seed's premise holds there.
+UNIT = core_inference.MAXENT_OBSERVATION_MODEL
 # graph.yaml's defaults (tests/test_graph_params.py ties them to the node's table).
 DEFAULT_RULE = dict(r_hat=1.05, min_ess=400.0, max_iterations=2000, time_budget_s=60.0)
 
@@ -43,6 +45,7 @@ def _request(inst: lavaland.LavalandInstance) -> InferReward.Request:
     req.horizon = inst.train_horizon
     req.proxy_weights = conv.weights_to_flat(inst.proxy_weights)
     req.beta, req.method, req.num_samples, req.seed = BETA, "maxent_z", NUM_SAMPLES, SEED
+    req.prior_sigma, req.designer_temperature = 1.0, 1.0  # UNIT, the setting the premise was found in
     return req
 
 
@@ -52,8 +55,8 @@ def _core(inst: lavaland.LavalandInstance, **kwargs: Any) -> core_inference.Post
     mdp = GridMDP(features, inst.train_start, inst.train_horizon)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return core_inference.sample_posterior(inst.proxy_weights, mdp, BETA, "maxent_z", NUM_SAMPLES, SEED,
-                                               **SAMPLER, **kwargs)
+        return core_inference.sample_posterior(inst.proxy_weights, mdp, BETA, "maxent_z", NUM_SAMPLES, SEED, 1.0,
+                                               observation_model=UNIT, **SAMPLER, **kwargs)
 
 
 def _infer(ros_ctx: Any, ros_domain: DomainLease, req: InferReward.Request, **params: Any) -> InferReward.Response:

@@ -71,7 +71,7 @@ def _request(inst: lavaland.LavalandInstance, method: str, *, proxy_map: bool = 
 def _joint(observations: list, method: str) -> core_inference.Posterior:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # tiny runs: only equality matters
-        return core_inference.sample_joint_posterior(observations, 3.0, method, 10, 17, 1.0, **SAMPLER)
+        return core_inference.sample_joint_posterior(observations, 3.0, method, 10, 17, None, **SAMPLER)
 
 
 @pytest.mark.parametrize("method", core_inference.METHODS)
@@ -109,7 +109,8 @@ def test_proxy_maps_of_several_worlds(method: str, call: Callable) -> None:
     train = GridMDP(inst.train_features, inst.train_start, inst.train_horizon)
     sec = GridMDP(second.features, second.start, second.horizon)
     job = InferenceJob(train, train.with_features(inst.proxy_train_features), inst.proxy_weights, 3.0, method, 10,
-                       17, 1.0, SamplerSettings(**SAMPLER),
+                       17, core_inference.calibrated_prior_sigma(core_inference.CALIBRATED_TEMPERATURE),
+                       SamplerSettings(**SAMPLER),
                        (ExtraWorld(sec, sec.with_features(second.proxy_features), second.proxy_weights),))
     observations = job_observations(job)  # N = SamplerSettings(**SAMPLER).num_proxy_samples
     # The node's per-world proxy terms are lavaland's.

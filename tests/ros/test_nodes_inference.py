@@ -125,7 +125,7 @@ def test_seeded_request_equals_sample_posterior(method: str, client: Client, sma
     assert response.success, response.message
     mdp = GridMDP(f64(small.train_features), small.train_start, small.train_horizon)
     with _no_check():
-        expected = core_inference.sample_posterior(small.proxy_weights, mdp, 3.0, method, 10, 123, 1.0, **SAMPLER)
+        expected = core_inference.sample_posterior(small.proxy_weights, mdp, 3.0, method, 10, 123, None, **SAMPLER)
     assert_posterior_equals(response.posterior, expected, small.feature_names, small.proxy_weights)
     # Another seed gives other samples (the seed reaches the sampler).
     other = client.call(make_request(small, method=method, num_samples=10, seed=124, beta=3.0))
@@ -165,7 +165,7 @@ def test_observation_model_equals_sample_joint_posterior(method: str, counts: st
     mdp = GridMDP(f64(small.train_features), small.train_start, small.train_horizon)
     with _no_check():
         expected = core_inference.sample_joint_posterior([core_inference.ProxyObservation(small.proxy_weights, mdp)],
-                                                         3.0, method, 10, 123, 1.0, observation_model=model, **SAMPLER)
+                                                         3.0, method, 10, 123, None, observation_model=model, **SAMPLER)
     assert_posterior_equals(response.posterior, expected, small.feature_names, small.proxy_weights)
     got = conv.posterior_from_msg(response.posterior)
     assert (got.proxy_counts, got.designer_temperature) == (model.counts, model.temperature)
@@ -187,7 +187,7 @@ def test_proxy_map_latent_classifier(method: str, client: Client) -> None:
     train, proxy = f64(inst.train_features), f64(inst.proxy_train_features)
     train_mdp = GridMDP(train, inst.train_start, inst.train_horizon)
     observation = core_inference.proxy_observation(
-        train_mdp, inst.proxy_weights, proxy_mdp=train_mdp.with_features(proxy), seed=9, prior_sigma=1.0,
+        train_mdp, inst.proxy_weights, proxy_mdp=train_mdp.with_features(proxy), seed=9, prior_sigma=None,
         num_proxy_samples=SAMPLER["num_proxy_samples"] if method == "sample_z" else None)
     phi, sample_phi = observation.proxy_features, observation.proxy_sample_features
     # The node's proxy terms are lavaland's (on the float32-rounded maps).
@@ -200,7 +200,7 @@ def test_proxy_map_latent_classifier(method: str, client: Client) -> None:
     mdp = GridMDP(train, inst.train_start, inst.train_horizon)
     extra = {} if sample_phi is None else {"proxy_sample_features": sample_phi}
     with _no_check():
-        expected = core_inference.sample_posterior(np.zeros(len(inst.feature_names)), mdp, 2.0, method, 8, 9, 1.0,
+        expected = core_inference.sample_posterior(np.zeros(len(inst.feature_names)), mdp, 2.0, method, 8, 9, None,
                                                    proxy_features=phi, **extra, **SAMPLER)
     assert_posterior_equals(response.posterior, expected, inst.feature_names, inst.proxy_weights)
     assert len(response.posterior.proxy_weights) == 3 and len(response.posterior.feature_names) == 6

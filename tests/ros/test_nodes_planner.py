@@ -236,7 +236,10 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
                    mode="per_step", baseline="training_features")
     # Before the posterior: the planner holds this generation's test map, proxy and training maps
     # (explicit weights, defaulted map and reference), so the replan below plans on them.
-    plan_when(probe, graph, lambda m: m.count(gen) == 4 and f"map={names.TOPIC_TEST_FEATURES}@{gen}" in m,
+    # map, the reference's three inputs and the training map the samples are scaled on
+    scaled_on = f"sample_scale=training_spread@{names.TOPIC_TRAIN_FEATURES}@{gen}"
+    plan_when(probe, graph, lambda m: m.count(gen) == 5 and f"map={names.TOPIC_TEST_FEATURES}@{gen}" in m
+              and scaled_on in m,
               **request, weights=samples.reshape(-1).tolist(), label="before_the_posterior")
 
     # A posterior in the hypothesis space, published the way the inference node does (latched).
@@ -263,7 +266,8 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
                                            "proxy_train_features": f32(inst.proxy_train_features)})
     f_ref = posterior.proxy_feature_expectations(rounded) / (T + 1)
     mdp = GridMDP(f32(inst.test_features), inst.test_start, T)
-    expected = planning.plan_path(mdp, samples, "per_step", "training_features", f_ref)
+    scaled = planning.normalise_samples(samples, f32(inst.train_features))  # sample_scale: training_spread
+    expected = planning.plan_path(mdp, scaled, "per_step", "training_features", f_ref)
 
     # replan_on_posterior: the planner planned on its own when the posterior arrived. Until the
     # request below, nothing else can publish a plan stamped after the posterior: the replan is
@@ -281,7 +285,8 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     spin_until(probe.node, lambda: any(p.header.stamp == replan.header.stamp for p in probe.plans), timeout=20.0,
                what="/plan of the replan", processes=graph)
 
-    response = plan_when(probe, graph, lambda m: m.count(gen) == 4 and stamp_text(msg.header.stamp) in m, **request)
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 5 and stamp_text(msg.header.stamp) in m
+                         and scaled_on in m, **request)
     assert f"map={names.TOPIC_TEST_FEATURES}@{gen}" in response.message
     assert list(zip(response.rows, response.cols)) == list(expected.cells)
     assert math.isclose(response.objective, expected.objective, rel_tol=1e-9, abs_tol=1e-9)

@@ -128,11 +128,11 @@ def test_a_resampling_uses_the_model_of_the_posterior_it_extends() -> None:
         observation = core_posterior.ProxyObservation(job.proxy_weights, job.train_mdp)
         kwargs = job.sampler.kwargs()
         assert np.array_equal(first.samples, core_posterior.sample_joint_posterior(
-            [observation], 2.0, "maxent_z", 8, 3, observation_model=optimal, **kwargs).samples)
+            [observation], 2.0, "maxent_z", 8, 3, 1.0, observation_model=optimal, **kwargs).samples)
         kwargs.pop("warmup")
-        expected = core_posterior.sample_joint_posterior([observation, choice], 2.0, "maxent_z", 8, 99, initial=first,
+        expected = core_posterior.sample_joint_posterior([observation, choice], 2.0, "maxent_z", 8, 99, 1.0, initial=first,
                                                          observation_model=optimal, **kwargs)
-        maxent = core_posterior.sample_joint_posterior([observation, choice], 2.0, "maxent_z", 8, 99, initial=first,
+        maxent = core_posterior.sample_joint_posterior([observation, choice], 2.0, "maxent_z", 8, 99, 1.0, initial=first,
                                                        observation_model=ObservationModel("maxent"), **kwargs)
     assert np.array_equal(resampled.samples, expected.samples)
     assert not np.array_equal(resampled.samples, maxent.samples)  # the model matters here
