@@ -24,9 +24,12 @@ CELL_SPREAD_FACTOR = 1.8
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_latent_raw_maxent_converges_and_lava_is_uncertain(seed: int) -> None:
+    # The unit-temperature designer with a unit prior: under the calibrated default (sigma 5 in
+    # d = 50) these chains do not converge (the next test holds that, docs/experiments.md).
     instance = lavaland.make_instance("latent_raw", seed)
     post = posterior.sample_posterior(instance.proxy_weights, lavaland.train_mdp(instance), 1.0, "maxent_z",
-                                      1000, seed=seed)
+                                      1000, seed=seed, prior_sigma=1.0,
+                                      observation_model=posterior.MAXENT_OBSERVATION_MODEL)
     assert post.samples.shape == (1000, 50)
     assert post.r_hat_max <= 1.05, post.r_hat_max
     assert post.converged and post.ess_min >= 100
@@ -40,3 +43,15 @@ def test_latent_raw_maxent_converges_and_lava_is_uncertain(seed: int) -> None:
     cell_sd = np.einsum("kd,hwd->khw", post.samples, instance.test_features).std(axis=0)
     by_terrain = {t: cell_sd[instance.test_labels == t].mean() for t in (*safe, Terrain.LAVA)}  # no gold here
     assert by_terrain[Terrain.LAVA] >= CELL_SPREAD_FACTOR * max(by_terrain[t] for t in safe), by_terrain
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="known: the calibrated prior (sigma 5 in d = 50) leaves latent_raw's MaxEnt-Z "
+                                       "chains unconverged (docs/experiments.md, 'The calibrated designer')")
+def test_latent_raw_maxent_converges_under_the_calibrated_default() -> None:
+    """Strict: passes (and so fails the suite) the day the default converges here, so the docs'
+    statement of the regression cannot outlive its fix."""
+    instance = lavaland.make_instance("latent_raw", 0)
+    post = posterior.sample_posterior(instance.proxy_weights, lavaland.train_mdp(instance), 1.0, "maxent_z",
+                                      1000, seed=0)
+    assert post.r_hat_max <= 1.05, post.r_hat_max

@@ -22,4 +22,5 @@ def drive_ird_plan(ird: IrdClient, proxy: Any, samples: np.ndarray, reference: n
     result = ird.plan(request, timeout=120)
     assert result.ok, result.message
     drive = ird.wait_for_rob(result.unwrap(), timeout=60)
-    return {"plan_cells": list(result.unwrap().cells), "final": drive.final, "statuses": list(drive.statuses)}
+    return {"plan_cells": list(result.unwrap().cells), "final": drive.final, "statuses": list(drive.statuses),
+            "plan_message": result.message}
