@@ -7,6 +7,7 @@ hangs, within a deadline, killing its children."""
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -76,15 +77,14 @@ def test_an_answering_probe_is_kept() -> None:
 
 
 STUCK_STOP = """
-import signal, sys, time
+import signal, sys, threading
 from ird_ros.launch import launcher as L
 from ird_ros.graph.nodes import NodeSpec
 
 class StuckSupervisor(L.Supervisor):
     def stop_processes(self, *args, **kwargs):
         print("stopping", flush=True)
-        while True:  # a stop that never ends (what a frozen probe did)
-            time.sleep(0.05)
+        threading.Event().wait()  # a stop that never ends (what a frozen probe did)
 
 L.Supervisor = StuckSupervisor
 spec = NodeSpec(name="sleeper", module="unused", script={script!r})
@@ -98,10 +98,22 @@ except KeyboardInterrupt:
 """
 
 
+def _wait_exit(pid: int, timeout: float) -> bool:
+    """Wait for a process that is not our child to exit: its pidfd turns readable (no polling)."""
+    try:
+        fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    try:
+        return bool(select.select([fd], [], [], timeout)[0])
+    finally:
+        os.close(fd)
+
+
 def test_a_second_sigint_ends_a_launcher_whose_stop_hangs(tmp_path: Path) -> None:
     sleeper = tmp_path / "sleeper.py"
-    sleeper.write_text("import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
-                       "signal.signal(signal.SIGTERM, signal.SIG_IGN)\nwhile True:\n    time.sleep(1)\n")
+    sleeper.write_text("import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+                       "signal.signal(signal.SIGTERM, signal.SIG_IGN)\nsignal.pause()\n")
     proc = subprocess.Popen([sys.executable, "-c", STUCK_STOP.format(script=str(sleeper))], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -118,10 +130,8 @@ def test_a_second_sigint_ends_a_launcher_whose_stop_hangs(tmp_path: Path) -> Non
         assert code == 130
         err = proc.stderr.read() if proc.stderr else ""
         assert "Traceback" not in err and "SIGINT during the stop: killed the nodes' process groups (1)" in err, err
-        deadline = time.monotonic() + 10
-        while _alive(child) and time.monotonic() < deadline:
-            time.sleep(0.02)
-        assert not _alive(child)  # SIGKILLed with its group, although it ignores SIGINT and SIGTERM
+        exited = _wait_exit(child, timeout=10.0)
+        assert exited and not _alive(child)  # SIGKILLed with its group, although it ignores SIGINT and SIGTERM
     finally:
         if proc.poll() is None:
             proc.kill()

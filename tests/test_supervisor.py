@@ -573,7 +573,7 @@ def test_a_wait_ends_when_abort_raises_and_a_stalled_wait_says_what_was_seen(mak
 def test_a_child_not_ready_gets_unready_signal_first_and_ends_without_a_traceback(make) -> None:
     """A Python child still importing (no handler of its own yet) that gets SIGINT prints a
     KeyboardInterrupt traceback; the launcher's ``unready_signal=SIGTERM`` ends it silently."""
-    importing = "import time\nprint('importing', flush=True)\nwhile True:\n    time.sleep(0.05)\n"
+    importing = "import signal\nprint('importing', flush=True)\nsignal.pause()\n"
     sup = make(ProcessSpec("slow_import", py(importing)))
     sup.wait_for_output("slow_import", "importing", timeout=30)
     sup.stop_processes(["slow_import"], sigterm_timeout=5.0, sigkill_timeout=5.0, unready_signal=signal.SIGTERM)
