@@ -52,12 +52,11 @@ def _row(experiment: str, spec: Any, planner: str, z_approx: str, inst: lavaland
                        *outcome(inst, plan.cells), plan.objective, plan.solver, False, *diag, plan.cells)
 
 
-def _plan(spec: Any, inst: lavaland.LavalandInstance, samples: np.ndarray, reference: np.ndarray,
-          risk: Risk) -> planning.Plan:
-    """The per-step plan of ``samples`` as the trial's IRD planners scale them (``spec.planning_samples``)."""
+def _plan(inst: lavaland.LavalandInstance, scaled: np.ndarray, reference: np.ndarray, risk: Risk) -> planning.Plan:
+    """The per-step plan of samples already scaled as the trial's IRD planners scale them
+    (``spec.planning_samples``)."""
     level = None if risk.measure == "min" else risk.level
-    return planning.plan_path(lavaland.test_mdp(inst), spec.planning_samples(inst, samples), _GRANULARITY, _BASELINE,
-                              reference,
+    return planning.plan_path(lavaland.test_mdp(inst), scaled, _GRANULARITY, _BASELINE, reference,
                               risk=risk.measure, risk_level=level)
 
 
@@ -65,7 +64,8 @@ def frontier_results(spec: Any, inst: lavaland.LavalandInstance, name: str, samp
                      reference: np.ndarray, diag: tuple[float, float, float]) -> list[TrialResult]:
     """One ``frontier`` row per :data:`FRONTIER_RISKS` level from ``samples``' per-step plans."""
     weights = samples.samples if isinstance(samples, posterior.Posterior) else samples
-    return [_row("frontier", spec, f"{name}/{risk.label()}", name, inst, _plan(spec, inst, weights, reference, risk), diag)
+    scaled = spec.planning_samples(inst, weights)  # once for every level
+    return [_row("frontier", spec, f"{name}/{risk.label()}", name, inst, _plan(inst, scaled, reference, risk), diag)
             for risk in FRONTIER_RISKS]
 
 
@@ -86,7 +86,8 @@ def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.nd
     risk, rows = _main_risk(spec), []
     nan3 = (0.0, math.nan, math.nan)
     prior = _prior_samples(spec, inst.test_features.shape[2])
-    rows.append(_row("controls", spec, "prior_only", "prior", inst, _plan(spec, inst, prior, reference, risk), nan3))
+    scaled_prior = spec.planning_samples(inst, prior)
+    rows.append(_row("controls", spec, "prior_only", "prior", inst, _plan(inst, scaled_prior, reference, risk), nan3))
     if spec.frontier:
         rows += frontier_results(spec, inst, "prior", prior, reference, nan3)
     worlds = [inst.train_features, *(w.features for w in inst.extra_training_worlds)]
@@ -102,7 +103,8 @@ def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.nd
             post = posterior_of(ZMethod.SAMPLE_Z.value, model)
             diag = (math.nan, post.r_hat_max, post.acceptance_rate)
             ref = posterior.proxy_feature_expectations(inst, model) / (inst.train_horizon + 1)
-            rows.append(_row("controls", spec, name, name, inst, _plan(spec, inst, post.samples, ref, risk), diag))
+            scaled = spec.planning_samples(inst, post.samples)
+            rows.append(_row("controls", spec, name, name, inst, _plan(inst, scaled, ref, risk), diag))
             if spec.frontier and name != "sample_z_no_own":
                 rows += frontier_results(spec, inst, name, post, ref, diag)
     return rows
