@@ -267,7 +267,7 @@ def main(argv: "list[str] | None" = None) -> int:
             log_density = nuts_reference.log_density_fn(model)
             rng = np.random.default_rng(args.seed)
             points = np.concatenate([inst.proxy_weights + 0.3 * rng.standard_normal((3, model.dim)),
-                                     spec.prior_sigma * rng.standard_normal((3, model.dim))])
+                                     model.prior_sigma * rng.standard_normal((3, model.dim))])
             try:
                 v_err, g_err = nuts_reference.check_agreement(model, log_density, points, VALUE_RTOL,
                                                               GRAD_RTOL[method])

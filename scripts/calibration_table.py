@@ -32,7 +32,7 @@ def table(runs: list[Path]) -> str:
                 continue
             lit = literal[s.condition]
             lines.append(
-                f"| {settings['temperature']:g} | {settings['prior_sigma']:g} | {settings.get('sample_scale', 'none')} | "
+                f"| {settings['temperature']:g} | {'calibrated' if settings['prior_sigma'] is None else format(settings['prior_sigma'], 'g')} | {settings.get('sample_scale', 'none')} | "
                 f"{s.condition} | "
                 f"{_pct(lit.lava_fraction)} / {_pct(lit.target_fraction)} | {s.planner} | "
                 f"{_pct(s.lava_fraction)} [{_pct(s.lava_ci_low)}, {_pct(s.lava_ci_high)}] | "

@@ -179,3 +179,15 @@ def test_chunks_merge_into_the_report_of_one_run(tmp_path) -> None:
     assert "seed=0..1 in 2 chunks" in text and "trials=2" in text
     # Chunks that share a seed are refused.
     assert active_cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks[0]), str(chunks[0])]) == 2
+
+
+def test_the_chains_follow_the_weight_space_size_unless_the_spec_sets_them() -> None:
+    """The designer-loop posteriors use the experiments' MaxEnt-Z recipe per size: 16-step chains
+    up to d = 10, 64-step ones (100 warm-up iterations, 32-step warm-up trajectories) in the
+    latent conditions' d = 50, where 16 steps leave the calibrated posterior unconverged."""
+    from ird_core.experiments.active import ActiveSpec
+    spec = ActiveSpec("latent_raw", 0)
+    assert spec.chain_settings(4) == dict(warmup=50, max_leapfrog=16, warmup_max_leapfrog=None)
+    assert spec.chain_settings(50) == dict(warmup=100, max_leapfrog=64, warmup_max_leapfrog=32)
+    explicit = ActiveSpec("latent_raw", 0, warmup=30, max_leapfrog=8)
+    assert explicit.chain_settings(50) == dict(warmup=30, max_leapfrog=8, warmup_max_leapfrog=32)

@@ -1,4 +1,4 @@
-"""scripts/bootstrap.sh shows progress: progress lines while pip and cmake run (read from their
+"""scripts/bootstrap.sh shows progress: progress lines while uv, pip and cmake run (read from their
 own output, scripts/lib/bootstrap_progress.sh), and its total time on its last line."""
 
 from __future__ import annotations
@@ -46,6 +46,24 @@ def test_pip_and_cmake_output_becomes_a_few_progress_lines() -> None:
     ]
 
 
+UV = """\
+Using Python 3.11.7 environment at: .venv
+Resolved 188 packages in 1.21s
+Prepared 188 packages in 2.87s
+Installed 188 packages in 410ms
+ + numpy==2.4.6
+ + ros-jazzy-rclpy==7.1.6
+"""
+
+
+def test_uv_output_becomes_its_three_summary_lines() -> None:
+    assert _progress(UV) == [
+        "[bootstrap]   step: resolved 188 packages in 1.21s",
+        "[bootstrap]   step: prepared 188 packages in 2.87s",
+        "[bootstrap]   step: installed 188 packages in 410ms",
+    ]
+
+
 def test_other_output_stays_in_the_log() -> None:
     assert _progress("Requirement already satisfied: numpy\n  Downloading x.whl\nwarning: something\n") == []
 
@@ -55,3 +73,18 @@ def test_the_last_line_gives_the_total_time() -> None:
     assert done.returncode == 0, done.stderr[-3000:]
     last = done.stdout.strip().splitlines()[-1]
     assert re.fullmatch(r"\[bootstrap\] ready: \S+/\.venv/bin/python \(set-up took \d+\.\d s\)", last), last
+
+
+def test_the_installed_packages_come_with_their_bytecode() -> None:
+    # uv compiles no bytecode unless asked (--compile-bytecode); with PYTHONDONTWRITEBYTECODE set,
+    # as on CI machines, every process would compile numpy, scipy and rclpy from source again.
+    import importlib.util
+
+    import numpy
+    import rclpy
+    import scipy.special
+
+    for module in (numpy, scipy.special, rclpy):
+        source = module.__file__
+        assert source is not None
+        assert Path(importlib.util.cache_from_source(source)).is_file(), f"no bytecode for {source}"

@@ -3,7 +3,7 @@ and what a reader sees in a real browser.
 
 - docs/architecture.md's node, topic, service and action tables equal what
   ``scripts/gen_graph_table.py`` generates from the graph's records now;
-- the site builds with ``-W --keep-going`` (the build of ``scripts/build_docs.sh`` and ``.ci/run``),
+- the site builds with ``-W --keep-going`` (the build of ``scripts/build_docs.sh``; ``.ci/run`` relies on this test for it),
   and a small doc set with a broken page link, heading link, file link or Python reference fails
   to build with the same configuration (while the same set without the break builds);
 - no built page or style sheet references an ``http(s)://`` (or protocol-relative) script, style

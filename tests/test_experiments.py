@@ -4,6 +4,7 @@ tiny maps, few samples)."""
 from __future__ import annotations
 
 import csv
+import gzip
 import math
 from pathlib import Path
 
@@ -459,6 +460,9 @@ def test_chunks_merge_into_the_report_of_one_run(tmp_path, capsys):
     assert [(r.condition, r.seed, r.planner, r.cells) for r in back] == \
         [(r["condition"], int(r["seed"]), r["planner"], tuple(tuple(map(int, c.split(","))) for c in r["cells"].split()))
          for r in rows(single, "trials.csv")]
+    # The committed copy is gzipped: read as it is, the same rows.
+    (tmp_path / "trials.csv.gz").write_bytes(gzip.compress((single / "trials.csv").read_bytes()))
+    assert repr(report.read_trials_csv(tmp_path / "trials.csv.gz")) == repr(back)  # repr: nan == nan
     # Clashes are refused with exit status 2 and a message naming the problem.
     capsys.readouterr()
     assert cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks["side0"]),

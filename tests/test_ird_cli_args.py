@@ -164,6 +164,17 @@ def test_graph_renders_sections_and_single_sections() -> None:
     assert graph.render(view, "nodes") == ["/world"]
     assert graph.render(view, "services") == ["/odd/get_parameters", names.SRV_GENERATE]
     assert graph.render(view, "services", show_types=True)[1] == f"{names.SRV_GENERATE} [ird_msgs/srv/GenerateWorld]"
+    # managed nodes show their lifecycle state
+    assert graph.render(view, "nodes", states={"/world": "active"}) == ["/world  active"]
+    assert graph.render(view, states={"/world": "inactive"})[1] == "  /world  inactive"
+
+
+def test_lifecycle_services_are_infrastructure() -> None:
+    nodes = {"/world"}
+    assert discovery.is_infrastructure("/world/change_state", nodes)
+    assert discovery.is_infrastructure("/world/get_state", nodes)
+    assert discovery.is_infrastructure("/world/transition_event", nodes)
+    assert not discovery.is_infrastructure(names.SRV_GENERATE, nodes)
 
 
 # --- messages and navigation lines ----------------------------------------------------------------

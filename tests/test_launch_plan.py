@@ -45,9 +45,11 @@ def test_default_plan_starts_the_default_nodes_in_table_order_with_the_default_p
     assert plan.names == list(DEFAULT_NODES)
     assert plan.params_file == ROOT / "msgs_config" / "params" / "graph.yaml"
     for node in plan.nodes:
+        # managed (lifecycle) nodes: the launcher configures and activates them
         assert node.argv == ("/usr/bin/python3", "-m", node.spec.module, "--ros-args",
-                             "--params-file", str(plan.params_file))
+                             "--params-file", str(plan.params_file), "-p", "autostart:=false")
         assert not node.respawn and node.wait_ready_topics
+    assert plan.managed == set(plan.names)
     assert not plan.has_recorder and plan.record_dir is None and plan.recorded_topics == ()
     assert plan.output is OutputMode.PREFIX and plan.cwd == ROOT and plan.notes == ()
     assert (plan.respawn_delay, plan.respawn_max_retries) == (1.0, LAUNCHER_DEFAULTS["respawn_max_retries"])

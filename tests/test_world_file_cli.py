@@ -144,10 +144,10 @@ def test_demo_prints_the_world_files_warnings(tmp_path: Path, capsys: pytest.Cap
     assert err.startswith(f"[demo] warning: --world: {path}: test_world.start:") and "is on lava" in err
 
 
-def test_a_node_that_dies_starting_is_reported_with_its_last_output_in_files_mode(tmp_path: Path) -> None:
-    """The demo's launcher writes the nodes' output to files: the death report still carries the
-    dead node's last lines (here the world node's refusal of a bad world file, given to it
-    directly, past the launchers' own check)."""
+def test_a_node_that_fails_to_configure_is_reported_with_its_reason_in_files_mode(tmp_path: Path) -> None:
+    """The demo's launcher writes the nodes' output to files: the report of a node whose configure
+    transition failed still carries the reason it logged (here the world node's refusal of a bad
+    world file, given to it directly, past the launchers' own check)."""
     from ird_ros.graph import NODES_BY_NAME
     from ird_ros.launch import GraphLauncher, LaunchError
 
@@ -157,6 +157,6 @@ def test_a_node_that_dies_starting_is_reported_with_its_last_output_in_files_mod
                        log_dir=tmp_path / "logs") as graph, pytest.raises(LaunchError) as info:
         graph.wait_ready(timeout=300)
     report = str(info.value)
-    assert "world (pid" in report and "exited with code 2; last output:" in report, report
-    after = report.split("last output:", 1)[1]
+    assert "world (pid" in report and "configure failed:" in report, report
+    after = report.split("configure failed:", 1)[1]
     assert f"{bad}: test_world.horizon: must be an integer in [1, 1000]" in after, report

@@ -46,8 +46,10 @@ LOGGER = logging.getLogger(__name__)
 PROJECT = ("ird_core", "ird_ros")
 
 
+@functools.cache
 def lookup(path: str) -> tuple[bool, Any]:
-    """``(found, object)`` for a dotted path: the longest importable module prefix, then attributes."""
+    """``(found, object)`` for a dotted path: the longest importable module prefix, then attributes.
+    Cached: one build imports each module once, and a failed import searches the file system."""
     parts = path.split(".")
     for split in range(len(parts), 0, -1):
         try:
@@ -138,15 +140,36 @@ def _as_imported(target: str, node: pending_xref) -> list[str]:
     return [f"{path}.{rest}" if rest else path] if path else []
 
 
+@functools.lru_cache(maxsize=4)
+def _by_last_names(described: tuple[str, ...]) -> dict[str, list[str]]:
+    """Every dotted tail of each described project object's name (``sample_posterior``,
+    ``posterior.sample_posterior``, ...) -> the names that end with it."""
+    out: dict[str, list[str]] = {}
+    for name in described:
+        if _in_project(name):
+            parts = name.split(".")
+            for i in range(1, len(parts)):
+                out.setdefault(".".join(parts[i:]), []).append(name)
+    return out
+
+
+@functools.cache
+def _class_source(klass: type) -> str | None:
+    """The source of a class (None if it has none); parsed once per class and build."""
+    try:
+        return inspect.getsource(klass)
+    except (OSError, TypeError):
+        return None
+
+
 def _instance_attribute(target: str, node: pending_xref, domain: Any) -> str | None:
     """The described project class whose methods assign ``self.<attr>`` (an instance attribute)."""
     for candidate in _scopes(target, node):
         parent, _, attr = candidate.rpartition(".")
         found, klass = lookup(parent) if parent else (False, None)
         if found and inspect.isclass(klass) and parent in domain.objects:
-            try:
-                source = inspect.getsource(klass)
-            except (OSError, TypeError):
+            source = _class_source(klass)
+            if source is None:
                 continue
             if f"self.{attr} =" in source or f"self.{attr}:" in source:
                 return parent
@@ -157,6 +180,7 @@ def _link(app: Sphinx, env: BuildEnvironment, node: pending_xref, contnode: node
     domain = env.get_domain("py")
     new = node.deepcopy()
     new["reftarget"] = name
+    new["refspecific"] = False  # ``name`` is the full name: no search through every object's name
     kind = "mod" if domain.objects[name].objtype == "module" else "obj"
     return domain.resolve_xref(env, node["refdoc"], app.builder, kind, name, new, contnode)
 
@@ -177,7 +201,7 @@ def _resolve(app: Sphinx, env: BuildEnvironment, node: pending_xref, contnode: n
                 return _link(app, env, node, contnode, name)
     # a project name written without its module (``sample_posterior`` in ird_core.checks): the one
     # described object of that name, if there is exactly one
-    matches = [name for name in domain.objects if name.endswith("." + target) and _in_project(name)]
+    matches = _by_last_names(tuple(domain.objects)).get(target, [])
     if len(matches) == 1:
         return _link(app, env, node, contnode, matches[0])
     owner = _instance_attribute(target, node, domain)

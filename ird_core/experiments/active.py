@@ -89,8 +89,10 @@ class ActiveSpec:
     """Everything one trial depends on. The map and the observations are the paper's (15x15,
     T = 30, 50-d observations in the latent conditions, as in Figure 4); the sampler settings are
     the experiments' small fixed-length ones (:data:`ird_core.experiments.QUICK`: 64 samples,
-    beta 50, 4 chains), with MaxEnt-Z (its gradient is cheap). The designer model is the
-    calibrated one (``temperature``; ``prior_sigma`` None: ``1 / temperature``)."""
+    beta 50, 4 chains; warm-up and leapfrog cap per weight-space size, :meth:`chain_settings`), with
+    MaxEnt-Z (its gradient is cheap). The designer model is the
+    calibrated one (``temperature``; ``prior_sigma`` None: ``1 / (temperature * feature scale)``,
+    ``ird_core.posterior.calibration``)."""
 
     condition: str
     seed: int
@@ -103,9 +105,9 @@ class ActiveSpec:
     temperature: float = posterior.CALIBRATED_TEMPERATURE
     method: str = ZMethod.MAXENT_Z.value
     num_chains: int = _SMALL.num_chains
-    warmup: int = _SMALL.warmup
+    warmup: "int | None" = None  # None: per weight-space size (:meth:`chain_settings`)
     thin: int = _SMALL.thin
-    max_leapfrog: int = _SMALL.max_leapfrog
+    max_leapfrog: "int | None" = None  # None: per weight-space size (:meth:`chain_settings`)
     # Warm-up of each re-sample after an answer; None: the library's ``DEFAULT_WARM_WARMUP`` (50
     # for MaxEnt-Z; shorter warm-ups leave more re-samples unconverged, docs/benchmarks.md).
     warm_warmup: "int | None" = None
@@ -120,8 +122,20 @@ class ActiveSpec:
         """The rationality the robot assumes for an answer."""
         return self.designer_beta if self.choice_beta is None else float(self.choice_beta)
 
+    def chain_settings(self, dim: int) -> dict:
+        """``warmup``, ``max_leapfrog`` and ``warmup_max_leapfrog`` of a cold posterior in ``dim``
+        dimensions: the spec's where given, else the experiments' MaxEnt-Z recipe for that size
+        (``TrialSpec.maxent_z_sampler.for_dim``: 50 and 16 up to d = 10, 100 and 64 with 32-step
+        warm-up trajectories above, where 16-step chains stay unconverged on the calibrated
+        designer's posterior)."""
+        recipe = TrialSpec("side_effects", 0).maxent_z_sampler.for_dim(dim)
+        return dict(warmup=recipe.warmup if self.warmup is None else self.warmup,
+                    max_leapfrog=recipe.max_leapfrog if self.max_leapfrog is None else self.max_leapfrog,
+                    warmup_max_leapfrog=recipe.warmup_max_leapfrog or None)
+
     def __post_init__(self) -> None:
-        object.__setattr__(self, "prior_sigma", posterior.resolve_prior_sigma(self.prior_sigma, self.temperature))
+        if self.prior_sigma is not None and not (math.isfinite(self.prior_sigma) and self.prior_sigma > 0):
+            raise ValueError(f"prior_sigma must be a finite number > 0 or None, got {self.prior_sigma!r}")
         if self.condition not in lavaland.ALL_CONDITIONS:
             raise ValueError(f"condition: expected one of {lavaland.ALL_CONDITIONS}, got {self.condition!r}")
         counts = tuple(self.query_counts)
@@ -204,7 +218,9 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma,
                                           observation_model=model)
     reference = proxy.proxy_features / (inst.train_horizon + 1)
-    options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=spec.max_leapfrog)
+    chain = spec.chain_settings(proxy.dim)
+    options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=chain["max_leapfrog"],
+                   warmup_max_leapfrog=chain["warmup_max_leapfrog"])
 
     resampled: dict[tuple, posterior.Posterior] = {}
 
@@ -217,7 +233,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per result instead
                 resampled[key] = posterior.sample_joint_posterior(
                     evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
-                    spec.prior_sigma, warmup=spec.warmup if initial is None else spec.warm_warmup,
+                    spec.prior_sigma, warmup=chain["warmup"] if initial is None else spec.warm_warmup,
                     initial=initial, observation_model=model, **options)
         return resampled[key]
 

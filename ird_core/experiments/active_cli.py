@@ -29,7 +29,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ird_core.posterior.calibration import resolve_prior_sigma
 from ird_core.experiments import active, active_report, parallel
 from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.report import RunRecord
@@ -60,10 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--designer-beta", type=float, default=d.designer_beta)
     p.add_argument("--choice-beta", type=float, default=None, help="robot's answer rationality (default: designer's)")
     parallel.add_trial_arguments(p, d)
-    p.set_defaults(prior_sigma=None)  # None: the calibrated 1 / --temperature (ird_core.posterior.calibration)
+    p.set_defaults(prior_sigma=None)  # None: calibrated (ird_core.posterior.calibration)
     p.add_argument("--temperature", type=float, default=d.temperature,
                    help="the modelled designer's temperature (default: the calibrated designer's); without "
-                        "--prior-sigma the prior follows it, sigma = 1 / temperature")
+                        "--prior-sigma the prior follows it, sigma = 1 / (temperature * rms training feature norm)")
     p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
     p.add_argument("--report-only", action="store_true",
@@ -77,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The ActiveSpec keywords of the flags."""
     return dict(size=args.size, horizon=args.horizon, obs_dim=args.obs_dim, num_samples=args.num_samples,
-                beta=args.beta, prior_sigma=resolve_prior_sigma(args.prior_sigma, args.temperature), temperature=args.temperature, method=args.method,
+                beta=args.beta, prior_sigma=args.prior_sigma, temperature=args.temperature, method=args.method,
                 num_chains=args.num_chains,
                 warmup=args.warmup, thin=args.thin, max_leapfrog=args.max_leapfrog, warm_warmup=args.warm_warmup,
                 query_counts=tuple(sorted(set(args.query_counts))), strategies=tuple(args.strategies),

@@ -49,7 +49,8 @@ file. A bad file: exit status 2 with the loader's message (file, key, value).
 Model and planner: --counts optimal|maxent and --temperature T choose the observation model
 (ird_core.posterior.ObservationModel: how the proxy's behaviour is counted; default maxent at
 T = 0.2, the calibrated designer), and without --prior-sigma the prior follows the temperature,
-sigma = 1 / T (ird_core.posterior.calibration); --risk min|cvar|mean_sd with --risk-level choose the main IRD planner's risk measure
+sigma = 1 / (T * rms training feature norm), 1 / T for one-hot terrains
+(ird_core.posterior.calibration); --risk min|cvar|mean_sd with --risk-level choose the main IRD planner's risk measure
 (default min). --frontier adds, from every posterior, the per-step plan at every level of
 ird_core.experiments.controls.FRONTIER_RISKS; --controls adds the control planners (prior only,
 novelty-avoiding, Sample-Z's other counts reading, Sample-Z without its own term). Either writes
@@ -79,7 +80,6 @@ from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES
 from ird_core.experiments.summaries import aggregate
 from ird_core.planning.sample_scale import SAMPLE_SCALES
-from ird_core.posterior.calibration import calibrated_prior_sigma
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
@@ -125,7 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the observation model's counts: optimal-path or MaxEnt (docs/modelling.md)")
     p.add_argument("--temperature", type=float, default=None,
                    help="the modelled designer's temperature (default 0.2, the calibrated designer); "
-                        "without --prior-sigma the prior follows it: sigma = 1 / temperature")
+                        "without --prior-sigma the prior follows it: sigma = 1 / (temperature * rms training "
+                        "feature norm), 1 / temperature for one-hot terrains")
     p.add_argument("--sample-scale", choices=SAMPLE_SCALES, default=None,
                    help="how the IRD planners scale posterior samples: by their reward range over the training "
                         "maps (training_spread, the default: ird_core.planning.sample_scale) or not at all (none)")
@@ -172,9 +173,6 @@ def resolve_spec_flags(args: argparse.Namespace) -> None:
     for field in SPEC_FLAGS:
         if getattr(args, field) is None:
             setattr(args, field, QUICK[field] if args.quick and field in QUICK else getattr(defaults, field))
-    if "prior_sigma" not in args.explicit:  # the calibrated designer: sigma follows --temperature
-        temperature = defaults.temperature if getattr(args, "temperature", None) is None else args.temperature
-        args.prior_sigma = calibrated_prior_sigma(temperature)
 
 
 def _quick_samplers(args: argparse.Namespace) -> dict[str, None]:

@@ -73,9 +73,10 @@ def _main_risk(spec: Any) -> Risk:
     return check_risk(spec.risk, None if spec.risk == "min" else spec.risk_level)
 
 
-def _prior_samples(spec: Any, dim: int) -> np.ndarray:
+def _prior_samples(spec: Any, inst: lavaland.LavalandInstance) -> np.ndarray:
     seed = int(np.random.SeedSequence([int(spec.seed), 200]).generate_state(1)[0])
-    return spec.prior_sigma * np.random.default_rng(seed).standard_normal((spec.num_samples, dim))
+    dim = inst.test_features.shape[2]
+    return spec.prior_sigma_for(inst) * np.random.default_rng(seed).standard_normal((spec.num_samples, dim))
 
 
 def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.ndarray,
@@ -85,7 +86,7 @@ def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.nd
     posterior of the trial with the trial's seeds."""
     risk, rows = _main_risk(spec), []
     nan3 = (0.0, math.nan, math.nan)
-    prior = _prior_samples(spec, inst.test_features.shape[2])
+    prior = _prior_samples(spec, inst)
     scaled_prior = spec.planning_samples(inst, prior)
     rows.append(_row("controls", spec, "prior_only", "prior", inst, _plan(inst, scaled_prior, reference, risk), nan3))
     if spec.frontier:

@@ -65,15 +65,17 @@ def write_trials_csv(path: Path, results: Sequence[TrialResult]) -> None:
 
 def read_trials_csv(path: Path) -> list[TrialResult]:
     """The rows of a ``trials.csv`` (:func:`write_trials_csv`'s inverse up to the csv's 6 significant
-    digits); ``ValueError`` / ``KeyError`` naming the bad row or column."""
+    digits), gzipped when ``path`` ends in ``.gz`` (the committed ``docs/results/trials.csv.gz``);
+    ``ValueError`` / ``KeyError`` naming the bad row or column."""
     import csv
+    import gzip
 
     def cells(text: str) -> tuple[tuple[int, int], ...]:
         return tuple((int(a), int(b)) for a, _, b in (pair.partition(",") for pair in text.split()))
 
     flag = {"0": False, "1": True}
     out = []
-    with open(path, newline="") as handle:
+    with (gzip.open(path, "rt", newline="") if Path(path).suffix == ".gz" else open(path, newline="")) as handle:
         for line, row in enumerate(csv.DictReader(handle), start=2):
             try:
                 out.append(TrialResult(

@@ -20,8 +20,6 @@ import math
 import time
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import Bounds, LinearConstraint
 
 from ird_core.mdp import GridMDP
 from ird_core.mdp.optimal_paths import optimal_paths
@@ -49,6 +47,9 @@ def _path_states(mdp: GridMDP, rewards: np.ndarray) -> np.ndarray:
 
 def _with_cvar(model: TrajectoryMilp, probabilities: np.ndarray, alpha: float) -> TrajectoryMilp:
     """The min-MILP turned into the CVaR MILP: ``u_k`` columns appended (``z - u_k <= R_k``)."""
+    import scipy.sparse as sp  # noqa: PLC0415 - lazy: every node imports ird_core.planning, few solve a MILP/LP
+    from scipy.optimize import Bounds, LinearConstraint  # noqa: PLC0415
+
     k = len(probabilities)
     a = model.constraints.A
     rows = a.shape[0]

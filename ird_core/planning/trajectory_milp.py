@@ -13,14 +13,16 @@ import math
 import time
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ird_core.mdp import GridMDP, successor_table
 from ird_core.planning.trajectory_bounds import come_from, states_to_cells, to_go
 from ird_core.planning.trajectory_limits import OutOfTime
+
+if TYPE_CHECKING:
+    from scipy.optimize import Bounds, LinearConstraint
 
 __all__ = ["TrajectoryMilp", "promising_nodes", "build_trajectory_milp", "solve_trajectory_milp"]
 
@@ -102,6 +104,9 @@ def build_trajectory_milp(mdp: GridMDP, q: np.ndarray, nodes: np.ndarray) -> Tra
         q: ``(K, S)`` shifted rewards of the kept samples.
         nodes: ``(T + 1, S)`` mask of kept (time, state) pairs; must contain a path from the start.
     """
+    import scipy.sparse as sp  # noqa: PLC0415 - lazy: every node imports ird_core.planning, few solve a MILP/LP
+    from scipy.optimize import Bounds, LinearConstraint  # noqa: PLC0415
+
     horizon, start = mdp.horizon, mdp.start_state
     e_time, e_src, e_dst = _time_expanded_edges(mdp, nodes)
     num_edges = len(e_time)
@@ -153,6 +158,8 @@ def build_trajectory_milp(mdp: GridMDP, q: np.ndarray, nodes: np.ndarray) -> Tra
 
 
 def _run_highs(model: TrajectoryMilp, options: dict) -> object:
+    from scipy.optimize import milp  # noqa: PLC0415 - lazy: every node imports ird_core.planning, few solve a MILP/LP
+
     with warnings.catch_warnings():  # scipy warns that these HiGHS options are passed verbatim
         warnings.filterwarnings("ignore", message="Unrecognized options", category=RuntimeWarning)
         return milp(model.cost, integrality=model.integrality, bounds=model.bounds,

@@ -53,7 +53,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from ird_core.mdp import GridMDP, successor_table
 from ird_core.planning.trajectory_bounds import best_returns as _best_returns
@@ -137,6 +136,8 @@ def _lp_relaxation(mdp: GridMDP, q: np.ndarray, seeds: list[np.ndarray], tol: fl
         limits: past their deadline no further round starts (the rounds done so far give
             valid, if looser, bounds); the work limit does not apply (the round count bounds it).
     """
+    from scipy.optimize import linprog  # noqa: PLC0415 - lazy: every node imports ird_core.planning, few solve a MILP/LP
+
     k = len(q)
     paths = list(seeds)
     returns = [q[:, p].sum(axis=1) for p in paths]  # each (K,)

@@ -26,6 +26,7 @@ from ird_core.posterior.evidence import (
 from ird_core.posterior.calibration import (
     CALIBRATED_TEMPERATURE,
     PRIOR_RULE,
+    feature_scale,
     calibrated_prior_sigma,
     resolve_prior_sigma,
 )
@@ -83,6 +84,7 @@ __all__ = [
     "ObservationModel",
     "CALIBRATED_TEMPERATURE",
     "PRIOR_RULE",
+    "feature_scale",
     "calibrated_prior_sigma",
     "resolve_prior_sigma",
     "DEFAULT_OBSERVATION_MODEL",

@@ -303,8 +303,9 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
             (a single observation is accepted too). May be empty only when ``dim`` is given.
         beta: the proxies' rationality, finite ``>= 0`` (each choice carries its own).
         method: ``"maxent_z"`` or ``"sample_z"``.
-        prior_sigma: prior standard deviation, ``> 0``; ``None``: the calibrated ``1 / temperature``
-            of ``observation_model`` (:mod:`ird_core.posterior.calibration`).
+        prior_sigma: prior standard deviation, ``> 0``; ``None``: the calibrated
+            ``1 / (temperature * feature scale)`` of ``observation_model`` and the proxy
+            observations' training maps (:mod:`ird_core.posterior.calibration`).
         proxy_samples: ``(N, d)`` Sample-Z proxy weights ``w_i``, shared by every training MDP;
             default ``proxy_prior_samples(num_proxy_samples, d, prior_sigma, seed)``. Drawn and
             planned only for proxy observations without ``proxy_sample_features``.
@@ -323,7 +324,10 @@ def make_joint_model(observations: "Sequence[Observation]", beta: float, method:
         raise ValueError(f"observation_model: expected an ObservationModel, got {type(observation_model).__name__}")
     beta = check_real("beta", beta, positive=False)
     parse(ZMethod, method, "method")
-    sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, observation_model.temperature), positive=True)
+    # The calibrated prior's feature scale pools the proxies' training maps (scale 1: only choices).
+    train_maps = [o.train_mdp.features for o in items if isinstance(o, ProxyObservation)] or None
+    sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, observation_model.temperature, train_maps),
+                       positive=True)
     seed = check_int("seed", seed, 0)
     num_proxy_samples = check_int("num_proxy_samples", num_proxy_samples, 1)
     samples = None if proxy_samples is None else check_array("proxy_samples", proxy_samples, (None, dim))

@@ -48,7 +48,8 @@ class ObservationModel:
     Attributes:
         counts: one of ``PROXY_COUNTS`` (``"optimal"`` or ``"maxent"``).
         temperature: in ``[0.001, 1000]``; the MaxEnt designer's temperature (used by ``"maxent"``
-            counts; with either counts it sets the calibrated prior scale ``1 / temperature``).
+            counts; with either counts it sets the calibrated prior scale
+            ``1 / (temperature * feature scale)``, :mod:`ird_core.posterior.calibration`).
         own_term: Sample-Z includes the candidate's own term in its normaliser.
 
     Raises ``ValueError`` naming the field.

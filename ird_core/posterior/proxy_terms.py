@@ -45,11 +45,11 @@ def _prior_counts(train: GridMDP, proxy_mdp: GridMDP | None, num: int,
                   seed: int | np.random.Generator, prior_sigma: "float | None",
                   model: ObservationModel = DEFAULT_OBSERVATION_MODEL) -> np.ndarray:
     """Sample-Z ``phi_i`` (num, d) of ``num`` proxies drawn from the prior in the proxy's space
-    (``prior_sigma`` ``None``: the calibrated sigma of ``model``)."""
+    (``prior_sigma`` ``None``: the calibrated sigma of ``model`` on the proxy space's training features)."""
     num = check_int("num_proxy_samples", num, 1)
-    prior_sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, model.temperature), positive=True,
-                             ranged=False)
     space = train if proxy_mdp is None else proxy_mdp
+    prior_sigma = check_real("prior_sigma", resolve_prior_sigma(prior_sigma, model.temperature, [space.features]),
+                             positive=True, ranged=False)
     return _counts(train, proxy_mdp, proxy_prior_samples(num, space.num_features, prior_sigma, as_generator(seed)),
                    model)
 
@@ -76,7 +76,8 @@ def proxy_observation(
             ``(N, d)`` (prior proxies drawn in the proxy's space with ``seed``, ``prior_sigma``).
         seed: int seed or numpy Generator of the prior draws.
         prior_sigma: prior standard deviation, ``> 0``; ``None``: the calibrated sigma of
-            ``observation_model`` (:mod:`ird_core.posterior.calibration`).
+            ``observation_model`` on the proxy space's training features
+            (:mod:`ird_core.posterior.calibration`).
         observation_model: how behaviour is counted (optimal path or MaxEnt expectations).
 
     Returns:
@@ -137,7 +138,7 @@ def proxy_prior_features(
         num: number of proxies (>= 1).
         seed: int seed or numpy Generator.
         prior_sigma: prior standard deviation (> 0); ``None``: the calibrated sigma of the
-            default observation model.
+            default observation model on the proxy space's training features.
 
     Returns:
         (num, d).
@@ -171,12 +172,18 @@ def proxy_observations(
         instance: the instance.
         num_proxy_samples: if given, each observation carries its Sample-Z counts
             ``proxy_prior_features(world, num_proxy_samples, seed, prior_sigma)``: the same proxy
-            draws planned in every world (needed when the proxy lives on classifier outputs).
+            draws planned in every world (needed when the proxy lives on classifier outputs);
+            ``prior_sigma`` ``None``: the calibrated sigma of the proxy space's features pooled
+            over every training world.
         observation_model: how behaviour is counted; pass the posterior's own.
     """
+    views = _training_views(instance)
     if num_proxy_samples is not None:
         _check_prior(num_proxy_samples, prior_sigma)
+        if prior_sigma is None:  # one calibrated sigma for every world: the same draws planned in each
+            spaces = [(train_mdp(v) if _proxy_mdp(v) is None else _proxy_mdp(v)).features for v in views]
+            prior_sigma = resolve_prior_sigma(None, observation_model.temperature, spaces)
     return [proxy_observation(train_mdp(view), view.proxy_weights, proxy_mdp=_proxy_mdp(view),
                               num_proxy_samples=num_proxy_samples, seed=seed, prior_sigma=prior_sigma,
                               observation_model=observation_model)
-            for view in _training_views(instance)]
+            for view in views]

@@ -58,7 +58,7 @@ DEFAULT_NUM_CHAINS: int = 16
 DEFAULT_WARMUP: dict[str, int] = {ZMethod.MAXENT_Z: 100, ZMethod.SAMPLE_Z: 150}
 #: With ``thin=None`` each chain runs at least this many iterations after warm-up.
 DEFAULT_MIN_ITERATIONS: dict[str, int] = {ZMethod.MAXENT_Z: 120, ZMethod.SAMPLE_Z: 100}
-DEFAULT_MAX_LEAPFROG: dict[str, int] = {"maxent_z": 32, "sample_z": 64}
+DEFAULT_MAX_LEAPFROG: dict[str, int] = {"maxent_z": 64, "sample_z": 64}
 DEFAULT_KERNEL: str = "hmc"
 #: HMC integration time in preconditioned units.
 DEFAULT_TRAJECTORY_LENGTH: float = 1.5
@@ -108,7 +108,8 @@ def sample_joint_posterior(observations: "Sequence[ProxyObservation | ChoiceObse
             shared by every training MDP) and, through an independent stream, the chains.
             Same seed, same samples.
         prior_sigma: prior standard deviation, ``> 0``; ``None`` (default): the calibrated
-            ``1 / temperature`` of ``observation_model`` (:mod:`ird_core.posterior.calibration`).
+            ``1 / (temperature * feature scale)`` of ``observation_model`` and the training maps
+            (:mod:`ird_core.posterior.calibration`).
         proxy_samples: ``(N, d)`` Sample-Z proxy weights, default drawn as above.
         num_chains: chains, run as one batch (``>= 2``).
         warmup: adaptation iterations per chain, discarded (``>= 0``; default per method,

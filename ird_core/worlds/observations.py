@@ -42,7 +42,6 @@ import dataclasses
 
 import numpy as np
 from scipy.special import logsumexp
-from scipy.stats import chi2
 
 from ird_core.worlds.terrain import SAFE_TERRAINS, Terrain, as_generator
 
@@ -287,6 +286,8 @@ class TerrainClassifier:
         0 for an observation at a class mean; a safe cell scores about 0.7 on average; lava
         scores far higher (see the module docstring).
         """
+        from scipy.stats import chi2  # noqa: PLC0415 - scipy.stats costs every node process 0.3 s at start
+
         nearest = np.min(self.mahalanobis_sq(obs), axis=-1)
         return -chi2.logsf(nearest, df=self.dim)
 

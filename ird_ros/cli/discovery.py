@@ -35,7 +35,10 @@ NODE_ACTIONS: dict[str, tuple[str, ...]] = {names.NODE_NAVIGATOR: (names.ACTION_
 page's generator reads the same from the node modules)."""
 
 _NODE_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters", "get_type_description",
-                  "list_parameters", "set_parameters", "set_parameters_atomically")
+                  "list_parameters", "set_parameters", "set_parameters_atomically",
+                  # a managed node's lifecycle services and topic (ird_ros.runtime.lifecycle)
+                  "change_state", "get_state", "get_available_states", "get_available_transitions",
+                  "get_transition_graph", "transition_event")
 _INFRA_TOPICS = ("/rosout", "/parameter_events")
 
 Entry = tuple[str, tuple[str, ...]]
@@ -47,7 +50,8 @@ def is_hidden(name: str) -> bool:
 
 
 def is_infrastructure(name: str, node_names: set[str]) -> bool:
-    """Whether ``name`` is a standard topic of every ROS process or a node's standard service."""
+    """Whether ``name`` is a standard topic of every ROS process or a node's standard service or
+    topic (parameters, type description, lifecycle)."""
     if name in _INFRA_TOPICS:
         return True
     head, _, tail = name.rpartition("/")

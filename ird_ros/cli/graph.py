@@ -12,11 +12,16 @@ DDS never says it has shown everything: a script that needs a name names it with
 1 naming what did not come within --timeout). A view still incomplete at --timeout (a graph of
 fewer nodes than the default: --timeout 5 shortens the wait) is printed with a note on stderr
 naming what is missing; no node at all: exit 1.
+
+Managed (lifecycle) nodes are listed with their state, asked from ``/<node>/get_state``
+(``/world  active``; ``unconfigured`` or ``inactive`` while the launcher has not activated them,
+``?`` if the node did not answer within a second). ``--all`` also lists their lifecycle services.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 from typing import Any
 
 from ird_ros.cli import discovery
@@ -63,15 +68,22 @@ def _entry(name: str, types: tuple[str, ...]) -> str:
     return f"{name} [{', '.join(types)}]"
 
 
-def render(view: discovery.GraphView, section: str | None = None, *, show_types: bool = False) -> list[str]:
+def render(view: discovery.GraphView, section: str | None = None, *, show_types: bool = False,
+           states: dict[str, str] | None = None) -> list[str]:
     """The lines ``ird graph`` prints for ``view``: every section with a header and counts, or one
-    section's names (with ``show_types``, ``NAME [TYPE]``)."""
+    section's names (with ``show_types``, ``NAME [TYPE]``); ``states``: managed nodes' lifecycle states."""
+    states = states or {}
+    width = max((len(n) for n in view.nodes), default=0)
+
+    def node_line(name: str) -> str:
+        return f"{name.ljust(width)}  {states[name]}" if name in states else name
+
     if section == "nodes":
-        return list(view.nodes)
+        return [node_line(n) for n in view.nodes]
     if section is not None:
         entries = getattr(view, section)
         return [_entry(n, t) if show_types else n for n, t in entries]
-    lines = [f"nodes ({len(view.nodes)}):", *(f"  {n}" for n in view.nodes)]
+    lines = [f"nodes ({len(view.nodes)}):", *(f"  {node_line(n)}" for n in view.nodes)]
     for name in SECTIONS[1:]:
         entries = getattr(view, name)
         lines += [f"{name} ({len(entries)}):", *(f"  {_entry(n, t)}" for n, t in entries)]
@@ -91,6 +103,31 @@ def run(args: argparse.Namespace) -> int:
                            f"{', '.join(absent)}")
         if missing:
             say(f"ird graph: the view is incomplete after {args.timeout:g} s, missing: {'; '.join(missing)}")
-        for line in render(view.shown(everything=args.all), args.section, show_types=args.show_types):
+        states = lifecycle_states(ird.node, view) if args.section in (None, "nodes") else {}
+        for line in render(view.shown(everything=args.all), args.section, show_types=args.show_types,
+                           states=states):
             print(line, flush=True)
     return EXIT_OK
+
+
+def lifecycle_states(node: Any, view: discovery.GraphView, timeout: float = 1.0) -> dict[str, str]:
+    """``{node: state label}`` of every node of ``view`` that serves ``<node>/get_state`` (all asked
+    at once; ``?`` for one that did not answer within ``timeout`` seconds)."""
+    from lifecycle_msgs.srv import GetState
+
+    from ird_ros.waits import spin_until
+
+    served = {name for name, _types in view.services}
+    clients = {n: node.create_client(GetState, f"{n}/get_state") for n in view.nodes if f"{n}/get_state" in served}
+    futures: dict[str, Any] = {}
+    try:
+        with contextlib.suppress(TimeoutError):
+            spin_until(node, lambda: all(c.service_is_ready() for c in clients.values()), timeout=timeout)
+        futures = {n: c.call_async(GetState.Request()) for n, c in clients.items() if c.service_is_ready()}
+        with contextlib.suppress(TimeoutError):
+            spin_until(node, lambda: all(f.done() for f in futures.values()), timeout=timeout)
+        return {n: (str(futures[n].result().current_state.label) if n in futures and futures[n].done()
+                    and futures[n].result() is not None else "?") for n in clients}
+    finally:
+        for c in clients.values():
+            node.destroy_client(c)

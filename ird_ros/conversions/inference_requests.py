@@ -156,11 +156,13 @@ def infer_job(req: Any, limits: InferenceLimits) -> tuple[InferenceJob, tuple[st
     model = observation_model(req.proxy_counts, float(req.designer_temperature), limits.observation_model)
     train, proxy, start = _world_maps("", req)
     d = train.shape[2]
-    # 0 = the node's default_prior_sigma; that 0 = the calibrated 1 / temperature (ird_core.posterior.calibration)
-    prior_sigma = float(req.prior_sigma) or float(limits.default_prior_sigma) or calibrated_prior_sigma(model.temperature)
+    # 0 = the node's default_prior_sigma; that 0 = None, the calibrated sigma of the temperature and
+    # the training maps' features, resolved by the library (ird_core.posterior.calibration)
+    prior_sigma = float(req.prior_sigma) or float(limits.default_prior_sigma) or None
     weights = checks.check_posterior_arguments(
         np.asarray(req.proxy_weights, dtype=np.float64), d if proxy is None else proxy.shape[2], req.beta,
-        req.method, int(req.num_samples), prior_sigma)
+        req.method, int(req.num_samples),
+        calibrated_prior_sigma(model.temperature) if prior_sigma is None else prior_sigma)
     train_mdp = GridMDP(train.features.astype(np.float64), start, int(req.horizon))
     job = InferenceJob(
         train_mdp=train_mdp,

@@ -4,22 +4,26 @@ The one node record of the project (docs/spec.md section 6): the launcher turns 
 processes and readiness checks (``ird_ros.launch.plan``), tests replace a node's ``script``
 and ``ros_args`` to run stand-ins. Data only: no ROS import.
 
-Readiness of a node (what a launcher waits for before it calls the node "up"):
+Readiness of a node (what a launcher waits for before it calls the node "up"). A managed node
+(``is_managed``: every node of this table run from its module) is a lifecycle node the launcher
+drives (``ird_ros.launch.lifecycle_driver``): it is ready when its ``activate`` transition
+succeeded and a message was received on every topic in ``ready_topics`` (they are transient
+local, so a subscriber with ``names.latched_qos()`` gets the latest one whenever it joins).
+A stand-in (``script``) is ready, from the graph, when
 
 - every service in ``services`` is discovered (``client.service_is_ready()``), and
-- a message was received on every topic in ``ready_topics`` (they are transient local, so a
-  subscriber with ``names.latched_qos()`` gets the latest one whenever it joins), and
+- a message was received on every topic in ``ready_topics``, and
 - if both are empty, the node's name is in the graph (``get_node_names_and_namespaces``).
 
 ``ready_topics`` only appear once the node's inputs exist: perception publishes after the
 world did; the planner's risk map needs a posterior, so it is not a readiness topic.
 ``after`` lists the nodes whose output a node needs before it can become ready; the launcher
-starts them first.
+starts them first and activates them first.
 
-Every node logs ``<name> ready`` (``ird_ros.runtime.node_main.run_node``) when it starts spinning: its
+Every node logs ``<name> ready`` when it becomes active (``ird_ros.runtime.lifecycle``): its
 publishers, subscriptions and services exist and, for inference and planner, the worker process
-has started and imported ``ird_core``; the world has built and published its first world. A
-node exits with code 0 on SIGINT or SIGTERM.
+has started and imported ``ird_core``; the world has published its first world. A node exits
+with code 0 on SIGINT or SIGTERM.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from dataclasses import dataclass
 
 from ird_ros.graph import names
 
-__all__ = ["NodeSpec", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "RECORDER_SPEC", "PARAMS_FILE"]
+__all__ = ["NodeSpec", "is_managed", "NODES", "NODES_BY_NAME", "DEFAULT_NODES", "RECORDER_SPEC", "PARAMS_FILE"]
 
 PARAMS_FILE = "msgs_config/params/graph.yaml"
 """The one parameter file of the graph, relative to the repository root. The parameters' defaults
@@ -52,6 +56,8 @@ class NodeSpec:
             ``scripts/launch_graph.py`` without ``--nodes``); the designer is off by default.
         script: if set, run as ``python <script>`` instead of ``python -m <module>`` (stand-ins).
         ros_args: appended after ``--ros-args --params-file FILE`` (e.g. ``-p key:=value``).
+        managed: a lifecycle node (``ird_ros.runtime.lifecycle.ManagedNode``) the launcher
+            configures and activates; ``script`` stand-ins never are (``is_managed``).
     """
 
     name: str
@@ -64,6 +70,13 @@ class NodeSpec:
     default: bool = True
     script: str | None = None
     ros_args: tuple[str, ...] = ()
+    managed: bool = True
+
+
+def is_managed(spec: NodeSpec) -> bool:
+    """Whether the launcher drives ``spec``'s lifecycle (configure, activate): a graph node run
+    from its module (``ird_ros.runtime.lifecycle``); a stand-in script is an ordinary node."""
+    return spec.managed and spec.script is None
 
 
 NODES: tuple[NodeSpec, ...] = (

@@ -124,7 +124,8 @@ class InferenceJob:
         proxy_mdp: the same grid on the proxy's features ``(H, W, p)`` (``proxy_map``), or ``None``
             when the proxy's weights apply to the training map's layers.
         proxy_weights: ``(p,)``.
-        beta, method, num_samples, seed, prior_sigma: as sample_posterior.
+        beta, method, num_samples, seed, prior_sigma: as sample_posterior (``prior_sigma`` None: the
+            calibrated sigma, ``ird_core.posterior.calibration``).
         sampler: the node's sampler settings.
         extra_worlds: the request's ``training_worlds`` (each one more ProxyObservation).
         observation_model: how every world's proxy behaviour is counted (module doc).
@@ -137,7 +138,7 @@ class InferenceJob:
     method: ZMethod
     num_samples: int
     seed: int
-    prior_sigma: float
+    prior_sigma: float | None
     sampler: SamplerSettings
     extra_worlds: tuple[ExtraWorld, ...] = ()
     observation_model: ObservationModel = DEFAULT_OBSERVATION_MODEL
@@ -148,20 +149,24 @@ def _num_proxy_samples(job: InferenceJob) -> int:
     return job.sampler.num_proxy_samples or core_inference.DEFAULT_NUM_PROXY_SAMPLES
 
 
-def world_observation(job: InferenceJob, world: ExtraWorld) -> core_inference.ProxyObservation:
+def world_observation(job: InferenceJob, world: ExtraWorld,
+                      proxy_prior_sigma: "float | None" = None) -> core_inference.ProxyObservation:
     """The ProxyObservation of one training world of ``job``.
 
     Without a proxy map the library computes ``phi~(w~)`` itself (with the sampler's
     ``observation_model``); with one, ``ird_core.posterior.proxy_observation`` plans the proxy on
     the proxy map under ``job.observation_model`` (and, for Sample-Z, the prior proxies drawn with
-    the job's ``seed``, so every world plans the same ones).
+    the job's ``seed``, so every world plans the same ones, at ``proxy_prior_sigma``: the job's
+    ``prior_sigma``, or when that is None the calibrated sigma of the proxy maps pooled over every
+    world, :func:`job_observations`).
     """
     if world.proxy_mdp is None:
         return core_inference.ProxyObservation(world.proxy_weights, world.train_mdp)
     sample_z = job.method == ZMethod.SAMPLE_Z
     return core_inference.proxy_observation(
         world.train_mdp, world.proxy_weights, proxy_mdp=world.proxy_mdp,
-        num_proxy_samples=_num_proxy_samples(job) if sample_z else None, seed=job.seed, prior_sigma=job.prior_sigma,
+        num_proxy_samples=_num_proxy_samples(job) if sample_z else None, seed=job.seed,
+        prior_sigma=job.prior_sigma if proxy_prior_sigma is None else proxy_prior_sigma,
         observation_model=job.observation_model)
 
 
@@ -169,7 +174,11 @@ def job_observations(job: InferenceJob) -> list[core_inference.ProxyObservation]
     """One ProxyObservation per training world: the request's own, then ``training_worlds`` in order
     (:func:`world_observation` each)."""
     worlds = [ExtraWorld(job.train_mdp, job.proxy_mdp, job.proxy_weights), *job.extra_worlds]
-    return [world_observation(job, world) for world in worlds]  # a few worlds, each one batched MDP pass
+    proxy_maps = [w.proxy_mdp.features for w in worlds if w.proxy_mdp is not None]
+    sigma = None  # the calibrated prior of the proxies' space, pooled as lavaland.proxy_observations does
+    if job.prior_sigma is None and proxy_maps:
+        sigma = core_inference.resolve_prior_sigma(None, job.observation_model.temperature, proxy_maps)
+    return [world_observation(job, world, sigma) for world in worlds]  # a few worlds, each one batched MDP pass
 
 
 def run_inference(job: InferenceJob) -> core_inference.Posterior:

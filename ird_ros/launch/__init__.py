@@ -1,9 +1,10 @@
 """Starting the graph: a launch plan (what runs, ``plan``), its execution (``GraphLauncher``),
-the ROS-free process supervisor and its vocabulary, and the rclpy readiness probe.
+the ROS-free process supervisor and its vocabulary, and the rclpy readiness probe, which is
+also the managed nodes' lifecycle manager (``lifecycle_driver``: configure, then activate).
 
 Layers, each importing only those below it: ``events`` (states, specs, typed events) and
-``process_groups`` (child set-up) <- ``supervisor`` (processes) <- ``readiness`` (the ROS graph)
-and ``plan`` (``ird_ros.graph``'s node table made concrete) <- ``launcher`` (executes a plan).
+``process_groups`` (child set-up) <- ``supervisor`` (processes) <- ``lifecycle_driver``,
+``liveness`` <- ``graph_view`` (a second reading of the graph) <- ``readiness`` (the ROS graph) and ``plan`` (``ird_ros.graph``'s node table made concrete) <- ``launcher`` (executes a plan).
 """
 
 from __future__ import annotations

@@ -28,15 +28,23 @@ gets SIGTERM if the launcher dies, even by SIGKILL.
 Recording. With ``record_dir`` a ``recorder`` node (``ird_ros.nodes.recorder``) is started last.
 It is stopped last, after the other nodes are gone, so the bag holds everything they published.
 
-Readiness, decided by a probe node (``launcher``) in this process that polls the ROS graph
-(no fixed sleeps; every check repeats until it holds or the timeout passes): a node is ready
-when its process runs and it passes ``ird_ros.launch.readiness`` (in the graph, its services listed,
-its publishers new, a message on its ``ready_topics`` since it started, unless the plan skips
-them). The recorder is ready when it subscribes to every topic the launched nodes publish and
-it records, and every latched message the probe received is counted in its bag;
-``wait_ready`` keeps applying that last condition after the recorder was first ready, for
-latched messages the probe receives later. ``wait_ready`` fails with ``LaunchError`` listing,
-per node, what is still missing (or how a process died, with its last output).
+Lifecycle and readiness. The graph's nodes are managed (lifecycle) nodes, started with
+``autostart:=false``: unconfigured. A probe node (``launcher``) in this process is their
+lifecycle manager (``ird_ros.launch.lifecycle_driver``, from the readiness thread): it
+configures every node as soon as its lifecycle services are discovered, activates the recorder
+first, and each other node once the recorder is ready (subscribed to everything it records:
+nothing is published before) and the nodes in its ``after`` are ready. A managed node is ready
+when its activate transition succeeded and a message arrived on its ``ready_topics`` since it
+started (unless the plan skips them). A failed transition (``configure failed: parameter ...``)
+fails ``wait_ready`` at once with ``LaunchError`` naming the node and the reason it logged; the
+node stays up, unconfigured, until the launcher stops it. Stand-ins (``script`` specs) are not
+managed: they are ready when the ROS graph shows them (``ird_ros.launch.readiness``: in the
+graph, their services listed, their publishers new, the ready topics). The recorder is ready
+when it is active, subscribes to every topic the launched nodes publish and it records, and
+every latched message the probe received is counted in its bag; ``wait_ready`` keeps applying
+that last condition after the recorder was first ready, for latched messages the probe receives
+later. ``wait_ready`` fails with ``LaunchError`` listing, per node, what is still missing (or
+how a process died, with its last output).
 
 Stalls. Every ready node is watched (``ird_ros.launch.liveness``, from the probe's thread): a
 node whose process is stopped (SIGSTOP, a debugger) or that answers no parameter request for
@@ -58,7 +66,10 @@ with a private ``ROS_LOG_DIR``; otherwise ``domain_id``, else the inherited ``RO
 ephemeral port range.
 
 Stopping (``stop()``, leaving the ``with`` block, or SIGINT/SIGTERM to the CLI): the nodes'
-process groups get SIGINT, then SIGTERM after 1.5 s, then SIGKILL after 2.5 s; the recorder
+process groups get SIGINT, on which each node runs its own shutdown transition (deactivate,
+then clean up: worker pools end, the recorder closes its bag; ``ird_ros.runtime.node_main``),
+which is what calling deactivate and cleanup through the services would do, without a round
+trip per node inside the 5 s budget; SIGTERM after 1.5 s, then SIGKILL after 2.5 s; the recorder
 then gets the same (its deadlines end at 4.5 s). Everything is gone within 5 s. A SIGINT or
 SIGTERM while the stop runs (a second Ctrl-C) kills every node's process group at once and ends
 the process (exit 130), whatever the stop was waiting for. A node not ready
@@ -110,6 +121,7 @@ NODES_SIGTERM_AT = 1.5
 NODES_SIGKILL_AT = 2.5
 RECORDER_SIGTERM_AFTER = 1.0  # after the recorder got SIGINT
 RECORDER_SIGKILL_AT = 4.5
+REASON_WAIT = 5.0  # seconds wait_ready waits for a failed node's logged reason
 
 Event = ProcessEvent
 """What happened to a node: ``kind`` (an ``EventKind``: started, ready, died, respawning,
@@ -285,7 +297,7 @@ class GraphLauncher:
                 supervisor, self.plan.specs, self.domain_id, self._env,
                 skip_ready_topics=self.plan.skipped_ready_topics,
                 recorder=RECORDER if self.plan.has_recorder else None, recorded=self.plan.recorded_topics,
-                on_change=self._notify, on_note=self._say)
+                on_change=self._notify, on_note=self._say, managed=self.plan.managed)
         monitor.start()
         return monitor
 
@@ -330,6 +342,7 @@ class GraphLauncher:
         sup, monitor = self._sup, self._monitor
         names = list(nodes) if nodes is not None else self.plan.names
         deadline = time.monotonic() + timeout
+        failed_at: dict[str, float] = {}
         with self._cond:
             while True:
                 if monitor.error is not None:
@@ -341,6 +354,16 @@ class GraphLauncher:
                 dead = [c for c in children if c.state in (ChildState.EXITED, ChildState.STOPPED)]
                 if dead:
                     raise LaunchError(self._death_report(dead))
+                failed = [(c, monitor.failure(c.name, c.pid)) for c in children if monitor.failure(c.name, c.pid)]
+                if failed:
+                    # The reason is in the node's log, which its output pump may read a moment after
+                    # the transition's answer came: wait for it (at most REASON_WAIT seconds).
+                    first = failed_at.setdefault(failed[0][0].name, time.monotonic())
+                    reasons = [self._failure_reason(c, what) for c, what in failed]
+                    if all(reasons) or time.monotonic() - first > REASON_WAIT:
+                        raise LaunchError("node(s) failed a lifecycle transition:\n" + "\n".join(
+                            f"  {c.name} (pid {c.pid}): {what}: {reason or '(see its output)'}"
+                            for (c, what), reason in zip(failed, reasons)))
                 if all(c.state is ChildState.READY for c in children) and not lagging:
                     return {c.name: float(c.ready_after or 0.0) for c in children}
                 remaining = deadline - time.monotonic()
@@ -355,6 +378,11 @@ class GraphLauncher:
             + "\n".join("    " + line for line in self.output(c.name, 15).splitlines())
             for c in dead)
 
+    def _failure_reason(self, c: ChildInfo, what: str) -> str:
+        """The reason node ``c`` logged for its failed transition (``<what>: <reason>``), or ""."""
+        logged = [line for line in self.output(c.name, 200).splitlines() if f"{what}:" in line]
+        return logged[-1].split(f"{what}:", 1)[1].strip() if logged else ""
+
     def _missing_report(self, children: Sequence[ChildInfo], lagging: Sequence[str]) -> str:
         assert self._monitor is not None
         lines = []
@@ -362,6 +390,8 @@ class GraphLauncher:
             if c.state is not ChildState.READY:
                 what = "; ".join(self._monitor.missing(c.name, c.pid)) or c.state
                 lines.append(f"  {c.name} (pid {c.pid}, {c.state}): {what}")
+                printed = self.output(c.name, 3).splitlines()
+                lines += ["    last output: " + (printed[0] if printed else "(none)")] + ["    " + p for p in printed[1:]]
             elif c.name == RECORDER and lagging:
                 lines.append(f"  {RECORDER}: " + "; ".join(lagging))
         return "\n".join(lines)

@@ -13,7 +13,8 @@ What a plan fixes:
   recording, comes last (and is stopped last, so its bag holds everything).
 - Command line of a node: ``<python> -m <module>`` (``<python> <script>`` if the spec has a
   script), then ``--ros-args --params-file <params>`` (without the file when the default params
-  file does not exist), then the spec's ``ros_args``. The recorder gets ``-p
+  file does not exist), then ``-p autostart:=false`` for a managed node (``is_managed``: the
+  launcher drives its lifecycle), then the spec's ``ros_args``. The recorder gets ``-p
   output_dir:=<record_dir>`` and, when topics are chosen, ``-p topics:=[a,b]``.
 - Params file: ``params`` if given (it must exist), else ``msgs_config/params/graph.yaml``.
 - Respawn: the union of ``respawn`` and the params file's ``launcher.respawn``; each must be a
@@ -52,7 +53,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, dds_network, ros_env
-from ird_ros.graph.nodes import NODES, RECORDER_SPEC, NodeSpec
+from ird_ros.graph.nodes import NODES, RECORDER_SPEC, NodeSpec, is_managed
 from ird_ros.launch.events import (
     OutputChoice,
     OutputMode,
@@ -186,6 +187,11 @@ class LaunchPlan:
     @property
     def respawned(self) -> frozenset[str]:
         return frozenset(n.name for n in self.nodes if n.respawn)
+
+    @property
+    def managed(self) -> frozenset[str]:
+        """Nodes the launcher drives through their lifecycle transitions (``is_managed``)."""
+        return frozenset(n.name for n in self.nodes if is_managed(n.spec))
 
     @property
     def skipped_ready_topics(self) -> frozenset[str]:
@@ -337,7 +343,8 @@ def _argv(spec: NodeSpec, python: str, params_file: Path | None) -> tuple[str, .
     """The full command line of ``spec`` (see the module docstring)."""
     head = (python, spec.script) if spec.script else (python, "-m", spec.module)
     params_args = ("--params-file", str(params_file)) if params_file is not None else ()
-    return (*head, "--ros-args", *params_args, *spec.ros_args)
+    managed = ("-p", "autostart:=false") if is_managed(spec) else ()
+    return (*head, "--ros-args", *params_args, *managed, *spec.ros_args)
 
 
 def _needs_missing_node(spec: NodeSpec, launched: list[str]) -> bool:

@@ -1,4 +1,10 @@
-"""Is a launched node ready? An rclpy probe node that reads the ROS graph (no fixed sleeps).
+"""Is a launched node ready? An rclpy probe node that drives the managed nodes' lifecycles and
+reads the ROS graph (no fixed sleeps).
+
+Managed nodes (``ird_ros.graph.nodes.is_managed``: the graph's own nodes) are configured and
+activated by ``ird_ros.launch.lifecycle_driver.LifecycleDriver`` on the probe's node; once
+active, only their ``ready_topics`` (and the recorder's recording, below) are checked here. The
+graph checks below decide the readiness of unmanaged nodes (stand-ins).
 
 ``GraphProbe`` runs a node (``launcher``) in its own rclpy context in the graph's domain; the
 launcher spins it and asks, for each starting node, what is still ``missing`` (an empty list:
@@ -13,6 +19,10 @@ ready). A node is ready when all of these hold:
 4. a message arrived on every topic of its ``ready_topics`` after the process started
    (latched topics: the probe subscribes transient local), unless the caller says not to
    wait for them.
+
+Items 1-3 read the probe's graph cache, which can keep a node's older endpoint list for good (an
+upstream race, ``ird_ros.launch.graph_view``): a node that has lacked only such items for a few
+seconds is judged by a fresh participant's reading instead, and a note says so when that helps.
 
 The recorder (``recorded`` topics given) is ready when it is in the graph, subscribes to each
 of those topics, and, for each of them that is latched (transient local) and on which the
@@ -34,16 +44,20 @@ is replaced and reported through ``on_note``.
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import json
 import os
 import threading
 import time
+from dataclasses import replace
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ird_ros.graph import names
 from ird_ros.graph.nodes import NodeSpec
+from ird_ros.launch import graph_view
 from ird_ros.launch.events import ChildInfo, ChildState, ProcessRecovered, ProcessStalled
+from ird_ros.launch.lifecycle_driver import ACTIVE, FAILED, LifecycleDriver
 from ird_ros.launch.liveness import (PING_NODE, PING_PERIOD, PING_TIMEOUT, LivenessProcess, PingParticipant,
                                      _close_participant, _open_participant)
 from ird_ros.launch.supervisor import Supervisor
@@ -131,18 +145,25 @@ class GraphProbe:
         *,
         wait_topics: bool = True,
         recorded: Sequence[str] | None = None,
+        managed: bool = False,
+        view: Any | None = None,
     ) -> list[str]:
         """What the process ``pid`` of ``spec`` still lacks to be ready (empty list: ready).
 
         ``started_at``: its ``time.monotonic()`` start (messages before it do not count);
         ``present``: ``present()``; ``wait_topics``: require its ``ready_topics``;
-        ``recorded``: the topics it must record (the recorder only).
+        ``recorded``: the topics it must record (the recorder only); ``managed``: a lifecycle
+        node, already active: only its ready topics (and a recorder's recording) are checked,
+        not its services and publishers in the graph. ``view``: a node whose reading of the graph
+        is used instead of the probe's (``ird_ros.launch.graph_view``; ``present`` from it too).
         """
-        node = self._node
+        node = self._node if view is None else view
         name = spec.name
         missing: list[str] = []
-        if (name, "/") not in present:
+        if not managed and (name, "/") not in present:
             return [f"node /{name} not in the graph"]
+        if managed:
+            spec = replace(spec, services=(), publishes=())
         if spec.services:
             served = {s for s, _t in node.get_service_names_and_types_by_node(name, "/")}
             missing += [f"service {s} not available" for s in spec.services if s not in served]
@@ -215,19 +236,25 @@ class ReadinessMonitor:
         ping_timeout: float = PING_TIMEOUT,
         on_note: Callable[[str], None] = lambda text: None,
         liveness_target: Callable[..., None] | None = None,
+        managed: Iterable[str] = (),
     ) -> None:
         self._sup = supervisor
+        self._managed = set(managed)
         self._specs = dict(specs)
         self._skip = set(skip_ready_topics)
         self._recorder = recorder
         self._recorded = list(recorded)
         self._on_change = on_change
         self._probe = GraphProbe(domain_id, env, recorder_status=recorder is not None)
+        self._driver = LifecycleDriver(self._probe.node)
         self._on_note = on_note
+        self._view = graph_view.SecondView(domain_id, env)
+        self._second_found: set[tuple[str, int]] = set()
         self._liveness = LivenessProcess(domain_id, env, period=ping_period, ping_timeout=ping_timeout,
                                          **({} if liveness_target is None else {"target": liveness_target}))
         self._lock = threading.Lock()
         self._missing: dict[str, tuple[int, list[str]]] = {}  # name -> (pid, what it lacks)
+        self._failures: dict[tuple[str, int | None], str] = {}  # (name, pid) -> failed transition
         self._lag: list[str] = []
         self._stalled: dict[str, float] = {}
         self._stall_notes: dict[str, str] = {}  # stalled name -> what the last liveness check saw
@@ -238,6 +265,11 @@ class ReadinessMonitor:
 
     def start(self) -> None:
         self._thread.start()
+
+    def failure(self, name: str, pid: int | None) -> str:
+        """Why the process ``pid`` of managed node ``name`` failed a transition ("" if it did not)."""
+        with self._lock:
+            return self._failures.get((name, pid), "")
 
     def missing(self, name: str, pid: int | None) -> list[str]:
         """What the process ``pid`` of ``name`` lacked at the last check."""
@@ -278,15 +310,17 @@ class ReadinessMonitor:
 
     def _check(self, starting: list[ChildInfo]) -> None:
         if not starting:
+            self._view.tick()
             return
         present = self._probe.present()
+        infos = self._sup.infos()
         for info in starting:
             assert info.pid is not None
+            managed = info.name in self._managed
             try:
-                missing = self._probe.missing(
-                    self._specs[info.name], info.pid, info.started_at, present,
-                    wait_topics=info.name not in self._skip,
-                    recorded=self._recorded if info.name == self._recorder else None)
+                missing = self._lifecycle(info, infos) if managed else []
+                if not missing:
+                    missing = self._graph_missing(info, present, managed)
             except Exception as exc:  # noqa: BLE001 - e.g. the node left the graph meanwhile
                 missing = [f"graph query failed: {exc}"]
             with self._lock:
@@ -294,6 +328,51 @@ class ReadinessMonitor:
             if not missing:
                 self._sup.mark_ready(info.name, info.pid)
             self._on_change()
+        self._view.tick()
+
+    def _graph_missing(self, info: ChildInfo, present: set[tuple[str, str]], managed: bool) -> list[str]:
+        """The probe's answer for ``info``; when it has named only graph entries for
+        ``SECOND_VIEW_AFTER`` s, a fresh participant's reading of the graph decides those
+        (``ird_ros.launch.graph_view``), and the first time that finds them, a note says so."""
+        assert info.pid is not None
+        ask = functools.partial(self._probe.missing, self._specs[info.name], info.pid, info.started_at,
+                                wait_topics=info.name not in self._skip,
+                                recorded=self._recorded if info.name == self._recorder else None, managed=managed)
+        missing = ask(present)
+        if not graph_view.graph_only(missing) or time.monotonic() - info.started_at < graph_view.SECOND_VIEW_AFTER:
+            return missing
+        view = self._view.node()
+        if view is None:
+            return missing
+        second = ask(self._view.present(), view=view)
+        if not graph_view.graph_only(second) and (info.name, info.pid) not in self._second_found:
+            self._second_found.add((info.name, info.pid))
+            self._on_note(f"{info.name} (pid {info.pid}): the probe's reading of the graph lacked "
+                          f"{'; '.join(missing)}; a fresh participant's reading has it "
+                          "(ros2/rmw_fastrtps#792, see ird_ros.launch.graph_view)")
+        return second
+
+    def _lifecycle(self, info: ChildInfo, infos: Mapping[str, ChildInfo]) -> list[str]:
+        """Drive a managed node's transitions (``LifecycleDriver``); what it lacks until active.
+
+        It may activate once the recorder (if one runs, and it is not the recorder) and the
+        launched nodes of its ``after`` are ready: the recorder subscribes to everything before
+        anything is published, and a node's inputs are published before it starts."""
+        assert info.pid is not None
+        first = [self._recorder] if self._recorder is not None and info.name != self._recorder else []
+        before = [n for n in (*first, *self._specs[info.name].after) if n in infos]
+        waiting = [n for n in before if infos[n].state is not ChildState.READY]
+        track = self._driver.advance(info.name, info.pid, may_activate=not waiting)
+        if track.phase == ACTIVE:
+            return []
+        if track.phase == FAILED:
+            with self._lock:
+                self._failures[(info.name, info.pid)] = track.error
+            return [track.error]
+        what = track.describe()
+        if track.phase == "inactive" and waiting:
+            what += f" (after {', '.join(waiting)})"
+        return [what]
 
     def _report_liveness(self, infos: Mapping[str, ChildInfo]) -> None:
         changes = self._liveness.check(infos)
@@ -327,5 +406,7 @@ class ReadinessMonitor:
         self._closing.set()
         if self._thread.is_alive():
             self._thread.join(2.0)
+        self._driver.close()
+        self._view.close()
         self._probe.close()
         self._liveness.close()

@@ -69,9 +69,9 @@ from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
 from ird_ros.jobs.planning import risk_text
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param, runtime_except
 from ird_ros.runtime.offload import BUSY_PREFIX, service_qos
 from ird_ros.stamps import stamp_ns, stamp_seconds
 from ird_ros.web import terrain_view
@@ -91,18 +91,19 @@ MODES: tuple[str, ...] = values(DesignerMode)
 
 PARAMETERS: dict[str, Param] = {
     "mode": Param(DesignerMode.SIMULATED.value, "simulated: answer every open query itself; web: a person answers on a page",
-                  choices=MODES, read_only=True),
+                  choices=MODES),
     "beta": Param(1.0, "Simulated designer's rationality (Boltzmann beta on the options' true returns)",
                   min_value=0.0),
-    "seed": Param(0, "Seed of the simulated designer's choices", min_value=0, max_value=2**32 - 1, read_only=True),
-    "host": Param("127.0.0.1", "Web page address (loopback by default)", read_only=True),
-    "port": Param(8765, "Web page port (0 = any free port)", min_value=0, max_value=65535, read_only=True),
+    "seed": Param(0, "Seed of the simulated designer's choices", min_value=0, max_value=2**32 - 1),
+    "host": Param("127.0.0.1", "Web page address (loopback by default)"),
+    "port": Param(8765, "Web page port (0 = any free port)", min_value=0, max_value=65535),
     "answer_timeout": Param(120.0, "Seconds an answer may take (re-sampling) before it is given up",
                             min_value=0.1),
     "retry_period": Param(1.0, "Seconds before a simulated answer refused as busy is sent again", min_value=0.01),
     "max_pages": Param(16, "Web pages open at once (WebSockets); one more is refused with a message naming the limit",
-                       min_value=1, max_value=1024, read_only=True),
+                       min_value=1, max_value=1024),
 }
+PARAMETERS = runtime_except(PARAMETERS, ("mode", "seed", "host", "port", "max_pages"))  # the page's are read-only
 
 #: The navigator's terminal goal states (``action_msgs/GoalStatus``), as the page says them.
 GOAL_OUTCOMES = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "aborted",
@@ -185,10 +186,23 @@ def mission_dict(rob: RobStatus | None, goal: str | None) -> dict[str, Any] | No
     return out
 
 
-class DesignerNode(GuardedNode):
+class DesignerNode(ManagedNode):
+    """The designer (managed): its web page runs from configure to cleanup; questions are answered
+    (simulated or from the page) only while active; ``beta``, ``answer_timeout`` and
+    ``retry_period`` may change at run time."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_DESIGNER, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        self.answer_timeout, self.retry_period = float(p["answer_timeout"]), float(p["retry_period"])
+        self.designer.beta = float(p["beta"])
+        if "retry_period" in changed:
+            self._retry_timer.timer_period_ns = int(self.retry_period * 1e9)
+
+    def configure(self, p: dict[str, Any]) -> None:
         self.mode = DesignerMode(p["mode"])
         self.answer_timeout, self.retry_period = float(p["answer_timeout"]), float(p["retry_period"])
         self.designer = SimulatedDesigner(float(p["beta"]), int(p["seed"]))
@@ -243,10 +257,10 @@ class DesignerNode(GuardedNode):
         self._last_record = time.monotonic()
         self._settle_timer = self.create_timer(HISTORY_SETTLE, self._update)
 
-    def destroy_node(self) -> None:
-        if self.web is not None:
+    def release(self) -> None:
+        if getattr(self, "web", None) is not None:
             self.web.stop("graph stopped: the designer node shut down")
-        super().destroy_node()
+            self.web = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -365,6 +379,8 @@ class DesignerNode(GuardedNode):
         return out
 
     def _update(self) -> None:
+        if not self.is_active:  # inactive: the page and the questions wait
+            return
         events = self.events()
         if self.web is not None:
             new = [ev for ev in events if (ev.query_id, ev.event, ev.stamp_ns) not in self._shown]
@@ -474,6 +490,8 @@ class DesignerNode(GuardedNode):
 
     def _web_answer(self, query_id: int, chosen: int) -> tuple[bool, str]:
         """``on_answer`` of the page: runs in the web server's thread, blocks until the reply."""
+        if not self.is_active:
+            return False, f"the designer node is {self.lifecycle_state}, not active: answers are not sent"
         if not self._client.service_is_ready():
             return False, f"inference node unavailable ({names.SRV_ANSWER} is not served)"
         request = AnswerQuery.Request(query_id=int(query_id), chosen=int(chosen), beta=0.0,

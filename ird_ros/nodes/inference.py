@@ -28,7 +28,8 @@ stricter than ``ird_core.posterior.R_HAT_CONVERGED``).
 
 The observation model (docs/spec.md section 3): ``proxy_counts`` "" and ``designer_temperature`` 0 take
 the parameters of those names (defaults: ``ObservationModel()``, the calibrated designer); ``prior_sigma``
-0 takes ``default_prior_sigma``, whose 0 is ``1 / temperature`` (``ird_core.posterior.calibration``). A bad
+0 takes ``default_prior_sigma``, whose 0 is the calibrated ``1 / (temperature * rms training feature norm)``
+(``ird_core.posterior.calibration``; ``1 / temperature`` for one-hot layers). A bad
 value is refused naming the field. The model is passed to every library call of the request, recorded
 in the posterior message and kept with the evidence (``/ird/answer`` re-samples with it). Sample-Z's
 own term stays the library's default (an experiment control, not a service field).
@@ -75,6 +76,15 @@ Questions to the designer (docs/spec.md section 7; the evidence's lifetime is do
   ``beta``, ``answered_by`` over ``sizes.MAX_TEXT`` fail naming the field; an answer during a
   re-sample is ``busy``; in every failure the evidence is unchanged.
 - Every proposal and taken answer is on ``/ird/queries`` (QueryRecord, ``names.history_qos()``).
+
+Life cycle (``ird_ros.runtime.lifecycle``): the worker pool starts at configure and ends at
+cleanup; requests are answered and posteriors published only while active. The worker pool's
+parameters (``worker_memory_mb``, ``max_workers``, ``max_pending``, ``worker_threads``) are
+read-only; the limits, the sampler settings and the observation model may change at run time
+and apply from the next request on.
+
+Longer than 450 lines: the three services share the node's evidence, maps and worker pool, and
+each validates its request next to where it is answered.
 """
 
 from __future__ import annotations
@@ -102,9 +112,9 @@ from ird_ros.jobs.inference import (InferenceJob, ResampleJob, observation_model
 from ird_ros.jobs.inference_queries import (ProposalRecord, ProxyQueryJob, QueryJob, WorldEvidence, proxy_query_job,
                                             proxy_test_mdp, query_reference, resample_seed, run_query)
 from ird_ros.jobs.work import check_query_work
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import Arrivals, StartupError, exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param, runtime_except
 from ird_ros.runtime.offload import BUSY_PREFIX, Offload, OffloadError, service_qos
 from ird_ros.stamps import stamp_key
 
@@ -122,7 +132,7 @@ class _MapMissing(ValueError):
 
 PARAMETERS: dict[str, Param] = {
     "default_prior_sigma": Param(0.0, "Prior standard deviation used when a request has prior_sigma 0 (0 = the "
-                                      "calibrated 1 / designer temperature of the request's observation model)",
+                                      "calibrated 1 / (designer temperature x rms training feature norm))",
                                  min_value=0.0, max_value=PRIOR_SIGMA_RANGE[1]),
     "proxy_counts": Param(ObservationModel().counts, "Observation model of a request with proxy_counts \"\": "
                                                      "optimal (optimal-path counts) | maxent", choices=PROXY_COUNTS),
@@ -161,9 +171,9 @@ PARAMETERS: dict[str, Param] = {
     "max_query_work": Param(5e9, "Largest work of an /ird/query request: K (T+1) H W + K H W d + K^3/2 + q^2 K^2 "
                                  "for K posterior samples (ird_ros.jobs.work)", min_value=1.0),
     "worker_memory_mb": Param(4096, "Address space of each inference worker process in MiB (0 = no limit); a "
-                                    "request past it fails naming worker_memory_mb", min_value=0, read_only=True),
+                                    "request past it fails naming worker_memory_mb", min_value=0),
     "max_workers": Param(1, "Worker processes: inferences computed at the same time (others queue)",
-                         min_value=1, max_value=64, read_only=True),
+                         min_value=1, max_value=64),
     "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
                          min_value=1),
     "answer_beta": Param(1.0, "Rationality (Boltzmann beta) of a designer's answer: the default of /ird/answer "
@@ -171,8 +181,11 @@ PARAMETERS: dict[str, Param] = {
     "max_options": Param(8, "Largest num_options a query may ask for", min_value=2, max_value=1000),
     "worker_threads": Param(1, "BLAS/OpenMP threads per worker process (0 = the library default); 1 leaves "
                                "the other cores to the node and the rest of the graph",
-                            min_value=0, max_value=1024, read_only=True),
+                            min_value=0, max_value=1024),
 }
+#: Read when the node is configured (the worker pool's, read-only); the others may change at run time.
+_AT_CONFIGURE = ("worker_memory_mb", "max_workers", "max_pending", "worker_threads")
+PARAMETERS = runtime_except(PARAMETERS, _AT_CONFIGURE)
 
 
 def _record_msg(query_id: int, record: ProposalRecord, event: QueryEvent,
@@ -195,22 +208,35 @@ def _publish_result(node: "InferenceNode", posterior: Posterior, job: InferenceJ
     return msg
 
 
-class InferenceNode(GuardedNode):
+class InferenceNode(ManagedNode):
+    """Inference (managed): the worker pool starts at configure and ends at cleanup; requests are
+    answered while active; the limits, the sampler and the observation model change at run time."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_INFERENCE, **kwargs)
-        p = declare_all(self, PARAMETERS)
-        self.max_horizon, self.max_map_values = p["max_horizon"], p["max_map_values"]
-        self.max_query_work, self.memory_limit = float(p["max_query_work"]), int(p["worker_memory_mb"]) * 2**20
-        self.sampler = sampler_settings(p)
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        """Check every setting of ``p``, then apply them all (``ValueError`` names a bad one)."""
+        sampler = sampler_settings(p)
         try:
             model = observation_model(p["proxy_counts"], float(p["designer_temperature"]))
         except ValueError as exc:
             raise StartupError(f"parameter {exc}") from None
-        self.limits = InferenceLimits(
+        limits = InferenceLimits(
             max_num_samples=p["max_num_samples"], max_horizon=p["max_horizon"], max_map_values=p["max_map_values"],
             max_training_worlds=p["max_training_worlds"], max_request_values=p["max_request_values"],
             max_inference_work=float(p["max_inference_work"]), memory_limit=self.memory_limit,
-            default_prior_sigma=float(p["default_prior_sigma"]), sampler=self.sampler, observation_model=model)
+            default_prior_sigma=float(p["default_prior_sigma"]), sampler=sampler, observation_model=model)
+        self.max_horizon, self.max_map_values = p["max_horizon"], p["max_map_values"]
+        self.max_query_work = float(p["max_query_work"])
+        self.sampler, self.limits = sampler, limits
+        self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
+
+    def configure(self, p: dict[str, Any]) -> None:
+        self.memory_limit = int(p["worker_memory_mb"]) * 2**20
+        self.apply_parameters(p, set(p))
         if p["worker_threads"] > 0:
             # Read by numpy's BLAS when the spawned worker imports it (the node's numpy is loaded).
             for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -219,7 +245,6 @@ class InferenceNode(GuardedNode):
                                 warm_modules=("ird_core.posterior", "ird_core.mdp"), memory_limit=self.memory_limit,
                                 logger=self.get_logger())
         self._pub = self.create_publisher(RewardPosterior, names.TOPIC_POSTERIOR, names.latched_qos())
-        self.answer_beta, self.max_options = float(p["answer_beta"]), int(p["max_options"])
         self.evidence = WorldEvidence()
         self.maps: dict[str, conv.FeatureGridData] = {}
         self._map_arrivals = Arrivals(self)
@@ -239,9 +264,10 @@ class InferenceNode(GuardedNode):
         self.create_service(AnswerQuery, names.SRV_ANSWER, self._on_answer, callback_group=group,
                             qos_profile=service_qos())
 
-    def destroy_node(self) -> None:
-        self._offload.shutdown()
-        super().destroy_node()
+    def release(self) -> None:
+        if getattr(self, "_offload", None) is not None:
+            self._offload.shutdown()
+            self._offload = None
 
     # ------------------------------------------------------------------ validation
 

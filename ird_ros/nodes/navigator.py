@@ -97,9 +97,10 @@ from ird_ros.jobs.navigation import (
     posterior_summary,
 )
 from ird_ros.jobs.planning import request_risk
-from ird_ros.runtime.guard import MAX_MESSAGE, GuardedNode, guarded_action_server
+from ird_ros.runtime.guard import MAX_MESSAGE, guarded_action_server
 from ird_ros.runtime.node_main import exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param, runtime_except
 from ird_ros.runtime.offload import service_qos
 from ird_ros.stamps import stamp_key
 
@@ -120,6 +121,7 @@ PARAMETERS: dict[str, Param] = {
     "rob_timeout": Param(30.0, "Seconds without a status from Rob while he drives the plan after which the "
                                "goal is aborted", min_value=0.1),
 }
+PARAMETERS = runtime_except(PARAMETERS, ())  # all of them: each goal reads them when it starts
 
 _STATUS_BUFFER = 1000  # recent /rob/status messages kept: Rob may report before /ird/plan answers
 
@@ -140,14 +142,23 @@ class _Stop(Exception):
         self.status, self.message, self.field = status, message, field[:MAX_MESSAGE]
 
 
-class NavigatorNode(GuardedNode):
+class NavigatorNode(ManagedNode):
+    """The navigator (managed): accepts goals only while active (deactivating cancels the running
+    goal); its limits and timeouts may change at run time (the next goal uses them)."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_NAVIGATOR, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
         self.limits = GoalLimits(max_queries=p["max_queries"], max_num_samples=p["max_num_samples"],
                                  default_beta=p["default_beta"], default_num_samples=p["default_num_samples"])
         self.answer_timeout, self.service_timeout = p["answer_timeout"], p["service_timeout"]
         self.call_timeout, self.rob_timeout = p["call_timeout"], p["rob_timeout"]
+
+    def configure(self, p: dict[str, Any]) -> None:
+        self.apply_parameters(p, set(p))
         self.infer_request: InferReward.Request | None = None
         self.proxy: ProxyReward | None = None
         self.terrain: conv.TerrainGridData | None = None
@@ -181,9 +192,10 @@ class NavigatorNode(GuardedNode):
                                              goal_callback=self._on_goal, cancel_callback=self._on_cancel,
                                              callback_group=group)
 
-    def destroy_node(self) -> None:
-        self._server.destroy()
-        super().destroy_node()
+    def deactivate(self) -> None:
+        if self._busy:  # the running goal ends as if cancelled (Rob stops)
+            self._cancel = True
+            self._wake()
 
     # ------------------------------------------------------------------ inputs
 
@@ -363,6 +375,10 @@ class NavigatorNode(GuardedNode):
     # ------------------------------------------------------------------ action callbacks
 
     def _on_goal(self, _goal: NavigateIrd.Goal) -> GoalResponse:
+        if not self.is_active:
+            self.get_logger().warning(f"goal rejected: the navigator is {self.lifecycle_state}, not active",
+                                      throttle_duration_sec=1.0)
+            return GoalResponse.REJECT
         if self._busy:  # answered at once; a burst logs one line a second, not one per goal
             self.get_logger().warning("goal rejected: a goal is active (one goal at a time)", throttle_duration_sec=1.0)
             return GoalResponse.REJECT

@@ -61,18 +61,18 @@ from ird_core.worlds.terrain import SAFE_TERRAINS, TERRAIN_NAMES
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.graph import names
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param
 from ird_ros.stamps import stamp_key
 
 __all__ = ["PerceptionNode", "PARAMETERS", "classify_indicators", "classify_sensors", "main"]
 
 PARAMETERS: dict[str, Param] = {
     "unknown_novelty": Param(0.0, "Latent conditions: cells whose classifier novelty (nats) exceeds this are "
-                                  "marked unknown (255); 0 = never", min_value=0.0),
+                                  "marked unknown (255); 0 = never", min_value=0.0, runtime=True),
     "world_file": Param("", "The world file the world node publishes (\"\" = none): file worlds with "
-                            "Gaussian features take their classifier from it", read_only=True),
+                            "Gaussian features take their classifier from it"),
 }
 
 _SAFE_NAMES = tuple(TERRAIN_NAMES[t] for t in SAFE_TERRAINS)
@@ -100,12 +100,18 @@ def classify_sensors(features: np.ndarray, num_sensors: int = 2) -> tuple[np.nda
     return classes, probs, (~agree).astype(np.float32)
 
 
-class PerceptionNode(GuardedNode):
+class PerceptionNode(ManagedNode):
+    """Perception (managed): reads the world while inactive, classifies and publishes while active;
+    ``unknown_novelty`` may change at run time (the current map is classified again)."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PERCEPTION, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def configure(self, p: dict[str, Any]) -> None:
         self.unknown_novelty = p["unknown_novelty"]
-        # A bad file stops the node at start-up, like the world node.
+        # A bad file fails the configure, like the world node's.
         self._file_instance = world_file.load_world(p["world_file"]) if p["world_file"] else None
         qos = names.latched_qos()
         self._classes_pub = self.create_publisher(TerrainGrid, names.TOPIC_TERRAIN_CLASSES, qos)
@@ -117,6 +123,15 @@ class PerceptionNode(GuardedNode):
         self.create_subscription(FeatureGrid, names.TOPIC_TEST_FEATURES, self._on_test, qos)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, qos)
 
+    def activate(self) -> None:
+        self._done_stamp = None  # publish the current map's classification (again)
+        self._try_process()
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        self.unknown_novelty = p["unknown_novelty"]
+        self._done_stamp = None
+        self._try_process()
+
     def _on_test(self, msg: FeatureGrid) -> None:
         self._test_msg = msg
         self._try_process()
@@ -127,7 +142,7 @@ class PerceptionNode(GuardedNode):
 
     def _try_process(self) -> None:
         test, proxy = self._test_msg, self._proxy_msg
-        if test is None or proxy is None:
+        if test is None or proxy is None or not self.is_active:
             return
         stamp = stamp_key(test.header.stamp)
         if stamp != stamp_key(proxy.header.stamp) or stamp == self._done_stamp:

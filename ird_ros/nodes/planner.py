@@ -62,6 +62,15 @@ whatever measure plans use; ``/ird/plan_info`` says which measure the current pl
 is republished whenever a new posterior or a new matching map arrives. With
 ``replan_on_posterior`` true, every new posterior also triggers a plan with ``default_mode`` /
 ``default_baseline`` (and the default risk) from the proxy's test start and horizon.
+
+Life cycle (``ird_ros.runtime.lifecycle``): the worker pools start at configure and end at
+cleanup; plans are served and ``/plan``, ``/ird/plan_info``, ``/ird/risk_map`` published only
+while active (activating publishes the current risk map). Every parameter but the pools'
+(``worker_memory_mb``, ``max_pending``: read-only) may change at run time and is used from the
+next request on (``risk_statistic``: the risk map is published again).
+
+Longer than 450 lines: the validation of every request field sits next to the service that
+answers it, and the defaults it fills in come from the inputs this node keeps.
 """
 
 from __future__ import annotations
@@ -84,9 +93,10 @@ from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
 from ird_ros.jobs.planning import PlanJob, ReferenceJob, reported_level, request_risk, risk_text, run_plan
-from ird_ros.runtime.guard import GuardedNode, guard_callback
+from ird_ros.runtime.guard import guard_callback
 from ird_ros.runtime.node_main import StartupError, exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param, runtime_except
 from ird_ros.runtime.offload import Offload, OffloadError, service_qos
 from ird_ros.stamps import stamp_text
 
@@ -119,6 +129,8 @@ PARAMETERS: dict[str, Param] = {
     "max_pending": Param(16, "Valid requests allowed to wait or run at once; more are refused as busy",
                          min_value=1),
 }
+#: The worker pools' (read when configured, read-only); the others may change at run time.
+PARAMETERS = runtime_except(PARAMETERS, ("worker_memory_mb", "max_pending"))
 
 
 @dataclass(frozen=True)
@@ -143,21 +155,34 @@ def _reshape_weights(flat: np.ndarray, grid: conv.FeatureGridData) -> np.ndarray
     return flat.reshape(-1, d)
 
 
-class PlannerNode(GuardedNode):
+class PlannerNode(ManagedNode):
+    """The planner (managed): worker pools from configure to cleanup, plans and the risk map while
+    active; every setting but the pools' may change at run time."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_PLANNER, **kwargs)
-        p = declare_all(self, PARAMETERS)
-        self.replan_on_posterior = p["replan_on_posterior"]
-        self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
-        self.risk_statistic, self.sample_scale = p["risk_statistic"], p["sample_scale"]
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        """Check the default risk measure of ``p``, then apply every setting (``ValueError``: refused)."""
         try:  # the default measure, checked once (a bad pair would refuse every defaulted request)
             default = request_risk(p["risk"], p["risk_level"], MIN_RISK,
-                                   self.default_mode if self.replan_on_posterior else None)
+                                   p["default_mode"] if p["replan_on_posterior"] else None)
         except ValueError as exc:
             raise StartupError(f"parameter {exc}") from None
         self.default_risk = default
+        self.replan_on_posterior = p["replan_on_posterior"]
+        self.default_mode, self.default_baseline = p["default_mode"], p["default_baseline"]
+        self.risk_statistic, self.sample_scale = p["risk_statistic"], p["sample_scale"]
         self.time_limit, self.max_horizon = p["time_limit"], p["max_horizon"]
         self.max_plan_work, self.max_map_values = p["max_plan_work"], p["max_map_values"]
+        if "risk_statistic" in changed and hasattr(self, "_risk_key"):
+            self._risk_key = None
+            self._update_risk_map()
+
+    def configure(self, p: dict[str, Any]) -> None:
+        self.apply_parameters(p, set())
         # Trajectory plans (seconds, up to time_limit) get their own worker: a long one never
         # delays a literal or per_step plan (milliseconds), which queue on the other.
         pool = dict(warm_modules=("ird_core.planning", "ird_core.posterior", "ird_core.mdp"),
@@ -183,10 +208,14 @@ class PlannerNode(GuardedNode):
                             # default group, which serves parameters (and subscriptions).
                             callback_group=ReentrantCallbackGroup())
 
-    def destroy_node(self) -> None:
-        for offload in self._offloads.values():
+    def activate(self) -> None:
+        self._risk_key = None  # publish the current risk map (again)
+        self._update_risk_map()
+
+    def release(self) -> None:
+        for offload in getattr(self, "_offloads", {}).values():
             offload.shutdown()
-        super().destroy_node()
+        self._offloads = {}
 
     # ------------------------------------------------------------------ inputs
 
@@ -212,7 +241,7 @@ class PlannerNode(GuardedNode):
         self._versions[names.TOPIC_POSTERIOR] = self._versions.get(names.TOPIC_POSTERIOR, 0) + 1
         self._stamps[names.TOPIC_POSTERIOR] = stamp_text(msg.header.stamp)
         self._update_risk_map()
-        if self.replan_on_posterior:
+        if self.replan_on_posterior and self.is_active:
             self.executor.create_task(guard_callback(self._replan, self.get_logger(), "replan_on_posterior")())
 
     def matching_map(self, layers: tuple[str, ...]) -> tuple[str, conv.FeatureGridData] | None:
@@ -220,7 +249,7 @@ class PlannerNode(GuardedNode):
         return conv.first_with_layers(self.maps, TEST_MAP_TOPICS, layers)
 
     def _update_risk_map(self) -> None:
-        if self.posterior is None:
+        if self.posterior is None or not self.is_active:
             return
         found = self.matching_map(self.posterior.feature_names)
         if found is None:

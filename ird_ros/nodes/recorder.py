@@ -68,7 +68,6 @@ from typing import Any, Callable
 import rclpy
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -80,7 +79,9 @@ from std_msgs.msg import String
 from ird_ros.bags.repair import checkpoint, close_writer
 from ird_ros.bags.storage import register_type
 from ird_ros.graph import names
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode, start_up
+from ird_ros.runtime.node_main import StartupError
+from ird_ros.runtime.node_params import Param
 
 __all__ = ["RecorderError", "RecorderNode", "PARAMETERS", "CHECKPOINT_ALLOWANCE", "loss_bound", "find_installed_msg",
            "main"]
@@ -108,7 +109,7 @@ STATUS_TOPIC = names.TOPIC_RECORDER_STATUS
 """std_msgs/String, latched: JSON ``{"output_dir": ..., "counts": {topic: messages}}``."""
 
 
-class RecorderError(RuntimeError):
+class RecorderError(StartupError):
     """A configuration problem the recorder cannot start with (printed, exit status 2)."""
 
 
@@ -192,14 +193,22 @@ def subscription_qos(publisher_profiles: list[Any], depth: int) -> QoSProfile:
     )
 
 
-class RecorderNode(Node):
-    """Records raw messages into a rosbag2/MCAP bag; call ``close()`` when done."""
+class RecorderNode(ManagedNode):
+    """Records raw messages into a rosbag2/MCAP bag (managed): the bag is created at configure,
+    topics are discovered and recorded while active, the bag is closed at cleanup (or ``close()``)."""
+
+    PARAMETERS = PARAMETERS
 
     def __init__(self, **kwargs: Any) -> None:
+        self.writer: Writer | None = None
+        self._flush_thread: threading.Thread | None = None
+        self._flush_stop = threading.Event()
+        self._recording_subs: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
         super().__init__(NODE_NAME, **kwargs)
-        declare_all(self, PARAMETERS)
 
-        out = str(self.get_parameter("output_dir").value or "").strip()
+    def configure(self, p: dict[str, Any]) -> None:
+        out = str(p["output_dir"] or "").strip()
         if not out:
             raise RecorderError("parameter output_dir is required (the bag folder to create), e.g. "
                                 "--ros-args -p output_dir:=bags/run1")
@@ -211,18 +220,18 @@ class RecorderNode(Node):
                                 "append to it; choose a new folder")
         self.topics: list[str] = [t for t in self._string_array("topics") if t]
         self.exclude = set(self._string_array("exclude_topics"))
-        self.depth = int(self.get_parameter("queue_depth").value)
+        self.depth = int(p["queue_depth"])
         self.output_dir.parent.mkdir(parents=True, exist_ok=True)
 
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         # The writer is used by the executor's callbacks and by the checkpoint thread: one at a time.
         self._writer_lock = threading.Lock()
-        self.writer: Writer | None = Writer(self.output_dir, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer = Writer(self.output_dir, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.open()
         checkpoint(self.writer)  # metadata.yaml and a readable (empty) MCAP from the start
-        self.counts: dict[str, int] = {}
+        self.counts = {}
         self._recording_conns: dict[str, Any] = {}
-        self._recording_subs: dict[str, Any] = {}
+        self._recording_subs = {}
         self._given_up: set[str] = set()
         self._dirty = False
 
@@ -232,18 +241,23 @@ class RecorderNode(Node):
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._status_sent: dict[str, int] | None = None
         self._status_timer = self.create_timer(0.1, self._publish_status)
-
-        self._discover()
-        period = float(self.get_parameter("discovery_period").value)
+        period = float(p["discovery_period"])
         self._discovery_timer = self.create_timer(max(period, 0.02), self._discover)
-        self.flush_period = float(self.get_parameter("flush_period").value)
+        self.flush_period = float(p["flush_period"])
         self._flush_stop = threading.Event()
-        self._flush_thread: threading.Thread | None = None
+        self._flush_thread = None
         if self.flush_period > 0:
             self._flush_thread = threading.Thread(target=self._checkpoints, name="recorder-checkpoints", daemon=True)
             self._flush_thread.start()
+
+    def activate(self) -> None:
+        self._status_sent = None  # publish the counts again
+        self._discover()
         what = ", ".join(self.topics) if self.topics else "all topics"
         self.get_logger().info(f"recording {what} into {self.output_dir} (rosbag2 v9, MCAP)")
+
+    def release(self) -> None:
+        self.close()
 
     def _string_array(self, name: str) -> list[str]:
         try:
@@ -262,7 +276,7 @@ class RecorderNode(Node):
         return topic not in self.exclude
 
     def _discover(self) -> None:
-        if self.writer is None:
+        if self.writer is None or not self.is_active:
             return
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recording_subs or topic in self._given_up or not self._wanted(topic):
@@ -306,7 +320,7 @@ class RecorderNode(Node):
 
         def callback(data: bytes) -> None:
             with self._writer_lock:
-                if self.writer is None:
+                if self.writer is None or not self.is_active:  # inactive: nothing is recorded
                     return
                 self.writer.write(conn, self.get_clock().now().nanoseconds, data)
                 self._dirty = True
@@ -355,6 +369,7 @@ class RecorderNode(Node):
         if self.writer is not None:
             for sub in self._recording_subs.values():
                 self.destroy_subscription(sub)
+            self._recording_subs = {}
             with self._writer_lock:
                 writer, self.writer = self.writer, None
                 close_writer(writer)
@@ -396,13 +411,14 @@ def main(args: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
     try:
-        try:
-            node = RecorderNode()
-        except RecorderError as exc:
-            print(f"[recorder] error: {exc}", file=sys.stderr, flush=True)
-            return 2
+        node = RecorderNode()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        if node.autostart and not start_up(node):  # else the launcher configures and activates it
+            print(f"[recorder] error: {node.transition_error}", file=sys.stderr, flush=True)
+            executor.shutdown()
+            node.destroy_node()
+            return 2
         try:
             while not stop.is_set() and rclpy.ok():
                 executor.spin_once(timeout_sec=0.1)
@@ -410,7 +426,8 @@ def main(args: list[str] | None = None) -> int:
                 _drain(executor, node)
         finally:
             node.close()
-            node.get_logger().info(node.summary())
+            if hasattr(node, "output_dir"):  # configured: it has a bag
+                node.get_logger().info(node.summary())
             executor.shutdown()
             node.destroy_node()
         return 0

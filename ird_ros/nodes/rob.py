@@ -34,23 +34,29 @@ from ird_msgs.msg import PlanInfo, ProxyReward, RobStatus, TerrainGrid
 from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.jobs.rob_logic import RobExecutor, RobStatusData
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param
 from ird_ros.stamps import stamp_key
 
 __all__ = ["RobNode", "PARAMETERS", "main"]
 
 PARAMETERS: dict[str, Param] = {
-    "rate_hz": Param(5.0, "Cells Rob moves per second", min_value=0.01, max_value=1000.0, read_only=True),
-    "child_frame_id": Param("base_link", "Odometry child frame"),
+    "rate_hz": Param(5.0, "Cells Rob moves per second", min_value=0.01, max_value=1000.0, runtime=True),
+    "child_frame_id": Param("base_link", "Odometry child frame", runtime=True),
 }
 
 
-class RobNode(GuardedNode):
+class RobNode(ManagedNode):
+    """Rob (managed): drives only while active (his tick timer runs then); ``rate_hz`` and
+    ``child_frame_id`` may change at run time."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_ROB, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def configure(self, p: dict[str, Any]) -> None:
         self.rate_hz, self.child_frame_id = p["rate_hz"], p["child_frame_id"]
         self.rob = RobExecutor()
         self._geometry: tuple[float, tuple[float, float]] | None = None
@@ -65,7 +71,12 @@ class RobNode(GuardedNode):
         self.create_subscription(PlanInfo, names.TOPIC_PLAN_INFO, self._on_info, latched)
         self.create_subscription(Path, names.TOPIC_PLAN, self._on_plan, latched)
         self.create_service(Trigger, names.SRV_ROB_STOP, self._on_stop)
-        self.create_timer(1.0 / self.rate_hz, self._tick)
+        self._timer = self.create_timer(1.0 / self.rate_hz, self._tick)
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        self.rate_hz, self.child_frame_id = p["rate_hz"], p["child_frame_id"]
+        if "rate_hz" in changed:  # the next tick comes at the new rate
+            self._timer.timer_period_ns = int(1e9 / self.rate_hz)
 
     # ------------------------------------------------------------------ inputs
 

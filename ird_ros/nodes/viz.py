@@ -40,9 +40,9 @@ from ird_msgs.msg import FeatureGrid, PlanInfo, QueryRecord, RewardPosterior, Ro
 from ird_ros import conversions as conv
 from ird_ros.bags import rounds as qr
 from ird_ros.graph import names
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import StartupError, exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param
 from ird_ros.stamps import stamp_key, stamp_ns
 from ird_ros.viz import (
     CHANNELS,
@@ -64,14 +64,13 @@ from ird_ros.viz import (
 __all__ = ["VizNode", "PARAMETERS", "FEATURE_TOPICS", "main"]
 
 PARAMETERS: dict[str, Param] = {
-    "host": Param("127.0.0.1", "Live view address (loopback by default; anything else logs a warning)",
-                  read_only=True),
+    "host": Param("127.0.0.1", "Live view address (loopback by default; anything else logs a warning)"),
     "port": Param(DEFAULT_PORT, "Live view port (0 = any free port; not 8765, the designer page's)",
-                  min_value=0, max_value=65535, read_only=True),
-    "trail_length": Param(200, "Poses of Rob's trail kept and shown", min_value=1, max_value=100000, read_only=True),
+                  min_value=0, max_value=65535),
+    "trail_length": Param(200, "Poses of Rob's trail kept and shown", min_value=1, max_value=100000),
     "allowed_origins": Param(list(DEFAULT_ALLOWED_ORIGINS),
                              "Origin headers allowed besides loopback ones (web apps; \"*\" = any); a request "
-                             "without Origin (desktop apps, scripts) is allowed", read_only=True),
+                             "without Origin (desktop apps, scripts) is allowed"),
 }
 
 FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
@@ -80,10 +79,16 @@ FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAI
 _PENDING = 16  # unmatched /plan or /ird/plan_info messages kept
 
 
-class VizNode(GuardedNode):
+class VizNode(ManagedNode):
+    """The live view (managed): its Foxglove server listens from configure to cleanup and shows
+    what arrives; ``/viz/status`` (the launcher's ready topic) is published at activate."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_VIZ, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def configure(self, p: dict[str, Any]) -> None:
         origins = [str(o) for o in p["allowed_origins"] if str(o).strip()]
         try:
             self.view = LiveView(str(p["host"]), int(p["port"]), logger=self.get_logger(), allowed_origins=origins)
@@ -116,12 +121,15 @@ class VizNode(GuardedNode):
         # Last: the status says the server listens (the launcher's readiness), so clients may connect.
         status_qos = names.qos_for(names.TOPIC_VIZ_STATUS)
         self._status_pub = self.create_publisher(String, names.TOPIC_VIZ_STATUS, status_qos)
+
+    def activate(self) -> None:
         self._status_pub.publish(String(data=json.dumps(
             {"url": self.view.url, "host": self.view.host, "port": self.view.port, "channels": CHANNELS})))
 
-    def destroy_node(self) -> None:
-        self.view.stop()
-        super().destroy_node()
+    def release(self) -> None:
+        if getattr(self, "view", None) is not None:
+            self.view.stop()
+            self.view = None
 
     @property
     def resolution(self) -> float:

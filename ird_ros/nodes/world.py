@@ -60,9 +60,9 @@ from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid, TrainingWorld
 from ird_msgs.srv import GenerateWorld, InferReward
 from ird_ros import conversions as conv
 from ird_ros.graph import names
-from ird_ros.runtime.guard import GuardedNode
 from ird_ros.runtime.node_main import exit_process, run_node
-from ird_ros.runtime.node_params import Param, declare_all
+from ird_ros.runtime.lifecycle import ManagedNode
+from ird_ros.runtime.node_params import Param
 from ird_ros.runtime.offload import service_qos
 
 __all__ = ["WorldNode", "PARAMETERS", "TOPIC_INFER_REQUEST", "infer_request", "with_world_file", "main"]
@@ -70,9 +70,10 @@ __all__ = ["WorldNode", "PARAMETERS", "TOPIC_INFER_REQUEST", "infer_request", "w
 TOPIC_INFER_REQUEST = names.TOPIC_INFER_REQUEST
 
 PARAMETERS: dict[str, Param] = {
-    "condition": Param("latent_raw", "Lavaland condition of the world generated at start-up",
-                       choices=lavaland.ALL_CONDITIONS),
-    "seed": Param(0, "Seed of the world generated at start-up (maps, proxy)", min_value=0, max_value=2**32 - 1),
+    "condition": Param("latent_raw", "Lavaland condition of the world published (set: a new world, as "
+                                     "/world/generate makes)", choices=lavaland.ALL_CONDITIONS, runtime=True),
+    "seed": Param(0, "Seed of the world published (maps, proxy; set: a new world)", min_value=0,
+                  max_value=2**32 - 1, runtime=True),
     "height": Param(lavaland.DEFAULT_SIZE, "Map height H in cells (rows)", min_value=3, max_value=1000),
     "width": Param(lavaland.DEFAULT_SIZE, "Map width W in cells (columns)", min_value=3, max_value=1000),
     "horizon": Param(lavaland.DEFAULT_HORIZON, "Horizon T (moves) of the training and the test MDP",
@@ -81,7 +82,7 @@ PARAMETERS: dict[str, Param] = {
                      max_value=10000),
     "resolution": Param(1.0, "Map resolution in metres per cell", min_value=1e-6, max_value=1e6),
     "world_file": Param("", "World file (YAML) published at start-up instead of a generated Lavaland; "
-                            "\"\" = generate", read_only=True),
+                            "\"\" = generate"),
 }
 
 
@@ -118,10 +119,15 @@ def with_world_file(specs: Sequence[Any], path: str | Path) -> list[Any]:
             if s.name in (names.NODE_WORLD, names.NODE_PERCEPTION) else s for s in specs]
 
 
-class WorldNode(GuardedNode):
+class WorldNode(ManagedNode):
+    """The world (managed: its first world is made at configure and published at activate)."""
+
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(names.NODE_WORLD, **kwargs)
-        p = declare_all(self, PARAMETERS)
+
+    def configure(self, p: dict[str, Any]) -> None:
         self.condition, self.seed = p["condition"], p["seed"]
         self.height, self.width, self.horizon = p["height"], p["width"], p["horizon"]
         self.obs_dim, self.resolution = p["obs_dim"], p["resolution"]
@@ -142,14 +148,33 @@ class WorldNode(GuardedNode):
             names.TOPIC_PROXY: self.create_publisher(ProxyReward, names.TOPIC_PROXY, qos),
         }
         self.instance: lavaland.LavalandInstance | None = None
+        # made now (a bad condition or world file fails the configure); published at activate
         if self.world_file is not None:
+            self.publish_file()
+        else:
+            self.generate(self.condition, self.seed)
+        self.create_service(GenerateWorld, names.SRV_GENERATE, self._on_generate, qos_profile=service_qos())
+
+    def apply_parameters(self, p: dict[str, Any], changed: set[str]) -> None:
+        """A new ``condition`` or ``seed`` makes (and, active, publishes) that world, as
+        ``/world/generate`` does; ``/world/generate`` sets them to the world it made (no-op here)."""
+        condition, seed = p["condition"], int(p["seed"])
+        if (condition, seed) == (self.condition, self.seed):
+            return
+        if condition == lavaland.FILE_CONDITION:
+            self.publish_file()
+        else:
+            self.generate(condition, seed)
+
+    def activate(self) -> None:
+        """Publish the current world (a generated one is made again from its condition and seed)."""
+        if self.world_file is not None and self.instance is self.world_file.instance:
             self.publish_file()
             self.get_logger().info(f"published world file {self.world_file.path}")
         else:
             self.generate(self.condition, self.seed)
             self.get_logger().info(
                 f"published {self.condition} seed {self.seed} {self.height}x{self.width} T={self.horizon}")
-        self.create_service(GenerateWorld, names.SRV_GENERATE, self._on_generate, qos_profile=service_qos())
 
     # ------------------------------------------------------------------ generation
 

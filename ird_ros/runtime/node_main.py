@@ -9,10 +9,13 @@ Life cycle and its invariants:
 - Signals: rclpy is initialised with ``SignalHandlerOptions.NO`` (rclpy installs no handler of
   its own) and ``run_node`` installs one handler for SIGINT and SIGTERM, also when the process
   inherited SIGINT *ignored* (a process started with ``&`` from a non-interactive shell).
-- Start-up (``rclpy.init``, ``factory()``): the first signal raises ``KeyboardInterrupt``, so a
-  slow start-up (worker warm-up) can be cut short; the node never served, exit 0. A factory
-  that raises anything else (bad parameter, missing input) logs ``cannot start: ...``, exit 2.
-- Serving: after ``<name> ready`` is logged, a signal only *records* the request to stop: no
+- Start-up (``rclpy.init``, ``factory()``, and for a managed node with ``autostart`` its
+  configure and activate transitions, ``ird_ros.runtime.lifecycle``): the first signal raises
+  ``KeyboardInterrupt``, so a slow start-up (worker warm-up) can be cut short; the node never
+  served, exit 0. A factory that raises anything else (bad parameter, missing input), or a
+  transition that fails, logs ``cannot start: ...``, exit 2. A managed node without
+  ``autostart`` (the launcher's) spins unconfigured, waiting for its transitions.
+- Serving: after start-up, a signal only *records* the request to stop: no
   exception is ever raised inside rclpy's executor or inside a callback, so the callback that
   is running when the signal arrives finishes (and answers). The main loop runs
   ``executor.spin_once(timeout_sec=0.1)`` until a stop was requested or the context was shut
@@ -23,7 +26,8 @@ Life cycle and its invariants:
   waits, without serving, until that second has passed: its answer may still be on its way
   (:func:`linger_after_answer`).
 - Clean-up runs with the executor idle (no callback executing, nothing waiting in a wait set):
-  ``executor.shutdown()``, then ``node.destroy_node()`` (which ends the node's worker
+  ``executor.shutdown()``, then a managed node's shutdown transition (deactivate, clean up),
+  then ``node.destroy_node()`` (which ends the node's worker
   processes) only if the shutdown reported that no callback was outstanding, then
   ``rclpy.try_shutdown()``; exit 0. Further signals during clean-up are recorded and ignored.
 - The process then ends with :func:`exit_process` (no interpreter finalisation).
@@ -72,11 +76,13 @@ def declare(
     max_value: float | None = None,
     choices: Sequence[str] | None = None,
     read_only: bool = False,
+    check_choices: bool = True,
 ) -> Any:
     """Declare a parameter with a descriptor (description, range, allowed values); return its value.
 
     Ranges are enforced by rclpy (also for values from the params file); ``choices`` are checked
-    here (rclpy has no enum constraint) and raise :class:`StartupError`.
+    here (rclpy has no enum constraint) and raise :class:`StartupError` (unless ``check_choices``
+    is false: a managed node checks them when it is configured).
     """
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
@@ -95,7 +101,7 @@ def declare(
                 from_value=float(min_value if min_value is not None else -sys.float_info.max),
                 to_value=float(max_value if max_value is not None else sys.float_info.max), step=0.0)]
     value = node.declare_parameter(name, default, descriptor).value
-    if choices is not None and value not in choices:
+    if check_choices and choices is not None and value not in choices:
         raise StartupError(f"parameter {name}: must be one of {list(choices)}, got {value!r}")
     return value
 
@@ -150,12 +156,13 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
         except Exception as exc:  # noqa: BLE001 - bad parameters, missing inputs: say why, exit 2
             rclpy.logging.get_logger("ird_ros").error(f"cannot start: {type(exc).__name__}: {exc}")
             return 2
+        executor.add_node(node)
+        if not _started(node):
+            rclpy.logging.get_logger("ird_ros").error(f"cannot start: {node.transition_error}")
+            return 2
         # From here on a signal only sets stop.requested (checked between two spin_once calls).
         stop.interrupting = False
         if not stop.requested:
-            executor.add_node(node)
-            # The readiness line launchers and tests wait for ("<name> ready").
-            node.get_logger().info(f"{node.get_name()} ready")
             while not stop.requested and executor.context.ok():
                 executor.spin_once(timeout_sec=0.1)
             linger_after_answer(node)
@@ -165,6 +172,37 @@ def run_node(factory: Callable[[], Any], args: Sequence[str] | None = None) -> i
         stop.interrupting = False
         _clean_up(node, executor)
     return 0
+
+
+def _started(node: Any) -> bool:
+    """Bring ``node`` up as far as it goes on its own; False when a transition failed.
+
+    A managed node (``ird_ros.runtime.lifecycle``) with ``autostart`` is configured and activated
+    here (it logs ``<name> ready``); without it, it waits, unconfigured, for a lifecycle manager
+    (the launcher). Any other node logs the readiness line ``<name> ready`` launchers and tests
+    wait for.
+    """
+    if not hasattr(node, "trigger_activate"):  # not a lifecycle node
+        node.get_logger().info(f"{node.get_name()} ready")
+        return True
+    if node.autostart:
+        return start_up(node)
+    node.get_logger().info(f"{node.get_name()} unconfigured: waiting for configure and activate "
+                           f"(/{node.get_name()}/change_state)")
+    return True
+
+
+def start_up(node: Any) -> bool:
+    """Configure and activate the managed ``node`` in this thread (``autostart``); False if a
+    transition failed (``node.transition_error`` says why)."""
+    from rclpy.lifecycle import TransitionCallbackReturn
+
+    for what, trigger in (("configure", node.trigger_configure), ("activate", node.trigger_activate)):
+        if trigger() != TransitionCallbackReturn.SUCCESS:
+            if not node.transition_error:
+                node.transition_error = f"{what} failed"
+            return False
+    return True
 
 
 #: Seconds a stopping node keeps its DDS participant after its last answer (see
@@ -206,6 +244,9 @@ def _clean_up(node: Any, executor: Any) -> None:
             rclpy.logging.get_logger("ird_ros").error(f"executor shutdown failed: {type(exc).__name__}: {exc}")
     if node is not None:
         if idle:
+            if hasattr(node, "trigger_shutdown"):  # a managed node: deactivate and clean up first
+                with contextlib.suppress(Exception):
+                    node.trigger_shutdown()
             with contextlib.suppress(Exception):
                 node.destroy_node()
         else:  # destroying entities a callback may still use is what crashes rclpy

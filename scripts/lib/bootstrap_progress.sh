@@ -3,6 +3,7 @@
 # reads the step's output and prints, with the seconds since the step started:
 #   - pip: the first package collected and every 25th after it, "installing N packages" when pip
 #     starts unpacking, "installed N packages" at the end;
+#   - uv: its "Resolved / Prepared / Installed N packages" lines;
 #   - cmake: "configured" and the build at 25, 50, 75 and 100 %.
 # Everything else stays in the log only. Event driven: a line is printed when the step's own
 # output says something happened, never on a timer.
@@ -26,6 +27,8 @@ ird_bootstrap_progress() {
       "Successfully installed "*)
         n=$(wc -w <<<"${line#Successfully installed }")
         printf '[bootstrap]   %s: installed %s [%ds]\n' "$name" "$(_ird_packages $((n)))" $((SECONDS - start)) ;;
+      "Resolved "*|"Prepared "*|"Installed "*|"Uninstalled "*)
+        printf '[bootstrap]   %s: %s [%ds]\n' "$name" "${line,}" $((SECONDS - start)) ;;
       "-- Configuring done"*)
         printf '[bootstrap]   %s: configured [%ds]\n' "$name" $((SECONDS - start)) ;;
       "["*"%]"*)

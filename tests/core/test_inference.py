@@ -270,7 +270,8 @@ def test_posterior_record() -> None:
     post = I.sample_posterior(np.array([0.5, -0.2, 0.1]), mdp, 2.0, "sample_z", 101, seed=2, num_chains=4,
                               thin=2, warmup=40, progress=lambda s, t: seen.append((s, t)))
     assert post.samples.shape == (101, 3) and post.num_samples == 101
-    assert (post.method, post.beta, post.prior_sigma, post.seed, post.num_chains) == ("sample_z", 2.0, 1 / TAU, 2, 4)
+    sigma = 1 / (TAU * I.feature_scale(mdp.features))  # the calibrated prior (posterior.calibration)
+    assert (post.method, post.beta, post.prior_sigma, post.seed, post.num_chains) == ("sample_z", 2.0, sigma, 2, 4)
     assert post.num_proxy_samples == I.DEFAULT_NUM_PROXY_SAMPLES and post.kernel == I.DEFAULT_KERNEL
     assert 0.0 < post.acceptance_rate <= 1.0 and post.r_hat.shape == (3,) and post.ess.shape == (3,)
     assert post.r_hat_max == post.r_hat.max() and post.ess_min == post.ess.min()
@@ -300,7 +301,7 @@ def test_trajectory_options_reach_the_chains() -> None:
     # Same seed: the defaults spelled out give the same run; a longer trajectory costs more
     # leapfrog steps (batched calls), one-step warm-up trajectories fewer, and both change the draws.
     args = dict(proxy_weights=np.array([0.5, -1.0, 0.3]), train_mdp=tiny_mdp(0), beta=2.0, method="maxent_z",
-                num_samples=16, seed=3, num_chains=4, warmup=40, max_leapfrog=32)
+                num_samples=16, seed=3, num_chains=4, warmup=40, max_leapfrog=32, prior_sigma=1 / TAU)
     base = I.sample_posterior(**args)
     same = I.sample_posterior(**args, trajectory_length=I.DEFAULT_TRAJECTORY_LENGTH,
                               warmup_max_leapfrog=I.DEFAULT_WARMUP_MAX_LEAPFROG)

@@ -18,6 +18,7 @@ from ird_msgs.srv import AnswerQuery
 from ird_ros import graph
 from ird_ros.graph import names
 from ird_ros.runtime.guard import MAX_MESSAGE, GuardedNode, is_guarded, unguarded_callbacks
+from ird_ros.runtime.lifecycle import TransitionCallbackReturn
 from ird_ros.waits import call_service
 
 # Small or port-free settings so that every node starts in-process.
@@ -44,7 +45,9 @@ def nodes(ros_ctx: Any) -> Iterator[dict[str, Node]]:
     try:
         for spec in graph.NODES:
             overrides = OVERRIDES.get(spec.name, [])
-            made[spec.name] = _node_class(spec.module)(context=ros_ctx, parameter_overrides=overrides)
+            made[spec.name] = node = _node_class(spec.module)(context=ros_ctx, parameter_overrides=overrides)
+            # managed nodes: configure creates the services, subscriptions, timers and action server
+            assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS, node.transition_error
         yield made
     finally:
         for node in made.values():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import ipaddress
 import os
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -154,6 +155,32 @@ def test_the_profile_file_exists_and_names_loopback_only() -> None:
     # discovery by unicast to 127.0.0.1; no multicast locator, so no socket on 239.255.0.1
     assert "<metatrafficUnicastLocatorList>" in text and "<initialPeersList>" in text
     assert "MulticastLocatorList" not in text
+
+
+# A participant in domain 240 is refused by Fast DDS with a logged error ("Calculated port
+# number is too high"): a sure way to make its log speak.
+_DDS_ERROR = """
+import os, rclpy
+ctx = rclpy.context.Context()
+rclpy.init(context=ctx, domain_id=240)
+rclpy.create_node("dds_log_probe", context=ctx)
+"""
+
+
+@pytest.mark.parametrize("profile", [True, False], ids=["profile", "without_profile"])
+def test_fast_dds_logs_to_stderr_never_into_stdout(profile: bool) -> None:
+    """Commands whose stdout is parsed (``ird graph``, ``ird echo``) must not carry Fast DDS's log
+    lines: the profile sends every level to stderr. Without it they land in stdout."""
+    env = dds_env({k: v for k, v in os.environ.items() if k not in DDS_KEYS})
+    if not profile:
+        env["SKIP_DEFAULT_XML_FILE"] = "1"
+        env.pop(DDS_PROFILE_VAR)
+    done = subprocess.run([sys.executable, "-c", _DDS_ERROR], env=env, capture_output=True, text=True, timeout=60)
+    tag = "Calculated port number is too high. Probably the domainId is over 232"
+    log_line = [line for line in (done.stdout + done.stderr).splitlines() if "RTPS" in line and tag in line]
+    assert len(log_line) == 1, (done.stdout, done.stderr)
+    assert (log_line[0] in done.stderr.splitlines()) is profile, (done.stdout, done.stderr)
+    assert (log_line[0] in done.stdout.splitlines()) is not profile, (done.stdout, done.stderr)
 
 
 # ---------------------------------------------------------------- real node processes

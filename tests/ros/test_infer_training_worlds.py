@@ -109,7 +109,7 @@ def test_proxy_maps_of_several_worlds(method: str, call: Callable) -> None:
     train = GridMDP(inst.train_features, inst.train_start, inst.train_horizon)
     sec = GridMDP(second.features, second.start, second.horizon)
     job = InferenceJob(train, train.with_features(inst.proxy_train_features), inst.proxy_weights, 3.0, method, 10,
-                       17, core_inference.calibrated_prior_sigma(core_inference.CALIBRATED_TEMPERATURE),
+                       17, None,  # the node's default: the calibrated sigma, resolved by the library
                        SamplerSettings(**SAMPLER),
                        (ExtraWorld(sec, sec.with_features(second.proxy_features), second.proxy_weights),))
     observations = job_observations(job)  # N = SamplerSettings(**SAMPLER).num_proxy_samples

@@ -102,7 +102,8 @@ def test_graph_lists_every_node_topic_service_and_the_action(graph: Any) -> None
     assert done.returncode == 0, done.stderr
     sections = _sections(done.stdout)
     assert set(sections) == {"nodes", "topics", "services", "actions"}, done.stdout
-    assert {f"/{n}" for n in DEFAULT_NODES} <= set(sections["nodes"])
+    # each managed node with its lifecycle state (the launcher activated them all)
+    assert {(f"/{n}", "active") for n in DEFAULT_NODES} <= {tuple(line.split()) for line in sections["nodes"]}
     assert not [n for n in sections["nodes"] if "/_" in n]  # no hidden node: not the CLI's own
     published = {t for n in DEFAULT_NODES for t in NODES_BY_NAME[n].publishes}
     for topic in published:

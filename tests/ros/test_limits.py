@@ -149,12 +149,13 @@ def test_inference_workers_are_memory_capped(ros_domain: DomainLease, ros_ctx: A
     from ird_ros.client import infer_request
 
     args = ["-m", "ird_ros.nodes.inference", "--ros-args", "--params-file", PARAMS, "-p", "worker_memory_mb:=1024",
-            "-p", "num_chains:=4", "-p", "warmup:=20", "-p", "thin:=1"]
+            "-p", "num_chains:=2", "-p", "warmup:=20", "-p", "thin:=1"]
     small = lavaland.make_instance("side_effects", 3, size=5, horizon=6)
     valid = infer_request(conv.feature_grid_to_msg(small.train_features, small.feature_names), small.train_start, 6,
                           small.proxy_weights, beta=1.0, method="maxent_z", num_samples=8, seed=0)
     # One weight's pass keeps two 1001 x 191 x 191 float64 tables (584 MiB, under the cap by
-    # itself): with the worker's own ~520 MiB it does not fit in 1024 MiB.
+    # itself): with the worker's own ~520 MiB it does not fit in 1024 MiB. Its work, 2 chains x
+    # 21 iterations x 64 leapfrog steps x 3.6e7, is under max_inference_work (2e11).
     big = infer_request(conv.feature_grid_to_msg(np.ones((190, 190, 1)), ("a",)), (0, 0), 1000, [1.0], beta=1.0,
                         method="maxent_z", num_samples=1, seed=0)
     with spawn_node_process(args, domain=ros_domain, name="inference", ready_text="inference ready") as node, \

@@ -27,7 +27,7 @@ SIZE, HORIZON, OBS_DIM, SEED = 6, 8, 6, 4
 #: The navigator's wait for an answer. It spans the designer's discovery of the question, its
 #: call and the inference node's re-sampling (the answered record is published after it), so it
 #: must not be a tight wall-clock budget: 3 s failed under a loaded CI run. The test without a
-#: designer waits this long for its abort.
+#: designer sets 3 s for its own goal (run-time parameter).
 ANSWER_TIMEOUT = 30.0
 #: The planner's max_plan_work in this graph: samples x (T + 1) x H x W = K x 9 x 36, so at most
 #: 3086 samples fit (the default, 5e7, fits every num_samples up to max_num_samples on a 6x6 map).
@@ -217,13 +217,33 @@ def test_the_goals_risk_measure_reaches_the_planner(ird: Any) -> None:
         assert [tuple(c) for c in result.cells] == list(zip(info.rows, info.cols))
 
 
+def _set_navigator_parameter(ird: Any, name: str, value: Any) -> None:
+    """Set one of the navigator's run-time parameters over its parameter service."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from ird_ros.graph import names
+
+    client = AsyncParameterClient(ird.node, names.NODE_NAVIGATOR)
+    ird.spin_until(lambda: client.services_are_ready(), timeout=30.0, what="the navigator's parameter services")
+    future = client.set_parameters([Parameter(name, value=value)])
+    ird.spin_until(future.done, timeout=30.0, what=f"setting the navigator's {name}")
+    assert future.result().results[0].successful, future.result()
+
+
 def test_a_question_without_a_designer_aborts_saying_so(ird: Any) -> None:
+    """Nobody answers: the goal is aborted after answer_timeout, a run-time parameter that the
+    next goal reads (3 s here: nothing can answer, so no load makes it too short)."""
     from ird_ros.client import NavigationStatus
 
-    feedback: list[Any] = []
-    result = ird.navigate(_goal(method="", queries=1), on_feedback=feedback.append, timeout=120)
+    _set_navigator_parameter(ird, "answer_timeout", 3.0)
+    try:
+        feedback: list[Any] = []
+        result = ird.navigate(_goal(method="", queries=1), on_feedback=feedback.append, timeout=120)
+    finally:
+        _set_navigator_parameter(ird, "answer_timeout", ANSWER_TIMEOUT)
     assert result.status is NavigationStatus.ABORTED
-    assert "designer" in result.message and "answer_timeout" in result.message, result.message
+    assert "designer" in result.message and "answer_timeout=3 s" in result.message, result.message
     assert "asking" in {f.stage for f in feedback}
 
 

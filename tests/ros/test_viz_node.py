@@ -25,7 +25,10 @@ NAMES = ["dirt", "grass", "target", "lava"]
 def viz(ros_ctx: Any) -> Iterator[Any]:
     from ird_ros.nodes.viz import VizNode
 
+    from ird_ros.runtime.lifecycle import start_up
+
     node = VizNode(context=ros_ctx, parameter_overrides=[Parameter("port", value=0)])
+    assert start_up(node), node.transition_error  # configure and activate, as autostart does
     try:
         yield node
     finally:
