@@ -7,8 +7,10 @@ its own: pytest imports test modules by their base name)."""
 from __future__ import annotations
 
 import math
+import types
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -147,6 +149,40 @@ def test_a_topic_a_node_reads_waits_for_its_publisher_in_the_default_graph() -> 
                                                      for t in spec.subscribes]
     with_world = discovery.GraphView(("/perception",), topics, (), (), frozenset(t for t, _ in topics))
     assert discovery.missing_from_records(with_world) == []
+
+
+def _settled(monkeypatch: pytest.MonkeyPatch, view: discovery.GraphView, quiet_for: float) -> tuple[bool, list[str]]:
+    """Whether ``settle``'s rule calls ``view`` complete after ``quiet_for`` s without change, and
+    what it says is missing."""
+    monkeypatch.setattr(discovery, "snapshot", lambda _node: view)
+    node = types.SimpleNamespace(get_publishers_info_by_topic=lambda _t: [],
+                                 get_subscriptions_info_by_topic=lambda _t: [])
+    state = discovery._Settling("/_ird_echo_1", 0.5, ())
+    state.done(node)  # the first look: the view changed now
+    state.changed_at -= quiet_for
+    return state.done(node), state.missing(node)
+
+
+def test_a_launched_graph_is_not_complete_while_only_the_launchers_own_nodes_are_seen(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """CI: `ird echo` found the launcher's ping node first and, 0.5 s later, called the graph empty."""
+    for helper in names.LAUNCHER_NODES:
+        view = discovery.GraphView(("/_ird_echo_1", f"/{helper}"), (), (), ())
+        done, missing = _settled(monkeypatch, view, quiet_for=60.0)
+        assert not done and missing == ["the launched nodes (only the launcher's own nodes are in the graph)"]
+    with_world = _world_view()
+    with_world = replace(with_world, nodes=(*with_world.nodes, "/launcher_ping"))
+    assert _settled(monkeypatch, with_world, quiet_for=0.6) == (True, [])
+
+
+def test_a_view_without_nodes_of_the_records_needs_a_longer_quiet(monkeypatch: pytest.MonkeyPatch) -> None:
+    foreign = discovery.GraphView(("/_ird_echo_1", "/turtlesim"), (("/turtle1/pose", ("turtlesim/msg/Pose",)),),
+                                  (), ())
+    assert _settled(monkeypatch, foreign, quiet_for=1.0) == (False, [])
+    assert _settled(monkeypatch, foreign, quiet_for=discovery.FOREIGN_QUIET + 0.1) == (True, [])
+    assert _settled(monkeypatch, _world_view(), quiet_for=0.6) == (True, [])  # a node of the records: 0.5 s
+    alone = discovery.GraphView(("/_ird_echo_1",), (), (), ())
+    assert _settled(monkeypatch, alone, quiet_for=60.0) == (False, [])
 
 
 def test_expected_names_are_nodes_topics_services_or_actions() -> None:

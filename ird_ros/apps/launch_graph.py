@@ -64,7 +64,7 @@ import time
 from pathlib import Path
 
 from ird_core.worlds.world_file import load_world_file
-from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec
+from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec, names
 from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
 from ird_ros.launch.plan import with_viz_port
@@ -261,10 +261,9 @@ def _print_live_view(graph: GraphLauncher) -> None:
     import json
 
     from ird_ros.client import ClientTimeout, IrdClient
-    from ird_ros.graph import names
 
     try:
-        with IrdClient(graph.domain_id, node_name="launcher_viz_status") as ird:
+        with IrdClient(graph.domain_id, node_name=names.NODE_LAUNCHER_VIZ_STATUS) as ird:
             status = json.loads(ird.latest(names.TOPIC_VIZ_STATUS, timeout=30).data)
     except (ClientTimeout, ValueError, KeyError) as exc:
         _error(f"--viz: could not read /viz/status ({exc})")

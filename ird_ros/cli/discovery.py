@@ -5,14 +5,19 @@ topics and services as DDS matches their endpoints), and DDS never says that it 
 everything. :func:`settle` spins the client until
 
 - some node other than the client is in the domain, and
+- a node of the graph's records is, when the launcher's own nodes (``names.LAUNCHER_NODES``) are
+  there (a launched graph runs launched nodes; DDS finds participants one by one, and a launcher
+  helper or another client is often found before the graph's nodes), and
 - every name in ``expect`` (nodes, topics, services, actions) is there, and
 - every node of the graph's records (``ird_ros.graph.NODES``) that is there shows what the records
   say it publishes, reads and serves (and the navigator its action), and each topic it reads that
   a node of the default graph publishes has a publisher (the default graph is connected that way,
   so one of its nodes seen means all are waited for; a graph launched with fewer nodes waits until
   ``timeout`` and is reported incomplete), and the node of every topic endpoint is known, and
-- nothing changed for ``quiet`` seconds (the ``ros2`` CLI's ``--spin-time`` without a daemon).
-  Other processes are covered only by this rule: a caller that must see one names it in ``expect``.
+- nothing changed for ``quiet`` seconds (the ``ros2`` CLI's ``--spin-time`` without a daemon), or
+  for ``FOREIGN_QUIET`` seconds when no node of the records is there (a graph of other nodes has no
+  records to complete, so only a longer quiet covers the participants not found yet).
+  Other processes are covered only by these rules: a caller that must see one names it in ``expect``.
 
 Hidden names (a part starting with ``_``: action internals, ``ird``'s and ``ros2``'s own nodes) and
 every node's standard ROS services and topics (parameters, type descriptions, ``/rosout``,
@@ -27,8 +32,11 @@ from typing import Any, Callable, Iterable
 
 from ird_ros.graph import NODES, NODES_BY_NAME, names
 
-__all__ = ["GraphView", "snapshot", "missing_from_records", "missing_names", "settle", "is_hidden",
+__all__ = ["FOREIGN_QUIET", "GraphView", "snapshot", "missing_from_records", "missing_names", "settle", "is_hidden",
            "is_infrastructure", "NODE_ACTIONS"]
+
+FOREIGN_QUIET = 3.0
+"""Seconds without change that complete a view holding no node of the records (module docstring)."""
 
 NODE_ACTIONS: dict[str, tuple[str, ...]] = {names.NODE_NAVIGATOR: (names.ACTION_NAVIGATE,)}
 """Actions each node of the records serves (a node record has no action field; the architecture
@@ -159,9 +167,23 @@ class _Settling:
     def others(self) -> list[str]:
         return [n for n in (self.view.nodes if self.view else ()) if n != self.own]
 
+    def quiet_needed(self) -> float | None:
+        """Seconds without change that complete the view now; None while it cannot be complete."""
+        others = {n.lstrip("/") for n in self.others()}
+        if not others:
+            return None
+        return self.quiet if others & set(NODES_BY_NAME) else max(self.quiet, FOREIGN_QUIET)
+
+    def launched_unseen(self) -> list[str]:
+        """What a launched graph lacks while only the launcher's own nodes of it are found."""
+        others = {n.lstrip("/") for n in self.others()}
+        if others & set(names.LAUNCHER_NODES) and not others & set(NODES_BY_NAME):
+            return ["the launched nodes (only the launcher's own nodes are in the graph)"]
+        return []
+
     def missing(self, node: Any) -> list[str]:
         assert self.view is not None
-        return (missing_names(self.view, self.expect) or missing_from_records(self.view)
+        return (missing_names(self.view, self.expect) or self.launched_unseen() or missing_from_records(self.view)
                 or _unknown_owners(node, self.view))
 
     def done(self, node: Any) -> bool:
@@ -169,13 +191,14 @@ class _Settling:
         now = time.monotonic()
         if view != self.view:
             self.view, self.changed_at = view, now
-        if not self.others():
+        needed = self.quiet_needed()
+        if needed is None:
             return False
         missing = self.missing(node)
         if missing and self.note is not None and now - self.started >= self.note_after:
             self.note(missing)
             self.note = None  # once
-        return not missing and now - self.changed_at >= self.quiet
+        return not missing and now - self.changed_at >= needed
 
 
 def settle(ird: Any, *, timeout: float, quiet: float = 0.5, expect: Iterable[str] = (),

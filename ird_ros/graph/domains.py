@@ -14,7 +14,7 @@ is free to import without ROS).
 DDS transport (``dds_env``; ``scripts/lib/ros_env.sh``'s ``ird_dds_env`` applies the same rule
 and a test holds the two equal). By default every process of the stack talks over loopback
 only: ``FASTRTPS_DEFAULT_PROFILES_FILE`` names ``msgs_config/dds/fastdds_localhost.xml``
-(UDPv4 restricted to 127.0.0.1 plus shared memory, discovery by unicast to 127.0.0.1) and
+(UDPv4 restricted to 127.0.0.1, no shared memory, discovery by unicast to 127.0.0.1) and
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` leaves discovery to that profile. Not
 ``LOCALHOST``: with it rmw_fastrtps (Jazzy) appends a UDPv4 transport of its own, which binds
 0.0.0.0 and the machine's external address whatever the profile says.

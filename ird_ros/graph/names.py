@@ -32,6 +32,11 @@ __all__ = [
     "NODE_RECORDER",
     "NODE_VIZ",
     "NODE_NAVIGATOR",
+    "NODE_LAUNCHER",
+    "NODE_LAUNCHER_PING",
+    "NODE_LAUNCHER_VIEW",
+    "NODE_LAUNCHER_VIZ_STATUS",
+    "LAUNCHER_NODES",
     "ACTION_NAVIGATE",
     "ACTION_TYPES",
     "SRV_ROB_STOP",
@@ -82,6 +87,14 @@ NODE_RECORDER = "recorder"
 # the live view for Foxglove / Lichtblick (ird_ros.nodes.viz; off by default)
 NODE_VIZ = "viz"
 NODE_NAVIGATOR = "navigator"
+# the launcher's own nodes, each in a participant of its own (ird_ros.launch): the readiness probe,
+# the liveness pings, the probe's second view of the graph, the demo's live-view status line
+NODE_LAUNCHER = "launcher"
+NODE_LAUNCHER_PING = "launcher_ping"
+NODE_LAUNCHER_VIEW = "launcher_view"
+NODE_LAUNCHER_VIZ_STATUS = "launcher_viz_status"
+LAUNCHER_NODES = (NODE_LAUNCHER, NODE_LAUNCHER_PING, NODE_LAUNCHER_VIEW, NODE_LAUNCHER_VIZ_STATUS)
+"""Nodes a launched graph holds besides the launched ones: seeing one means the launched nodes run."""
 
 # world
 TOPIC_TRAIN_FEATURES = "/world/train_features"

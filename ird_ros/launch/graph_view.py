@@ -27,11 +27,12 @@ from __future__ import annotations
 import time
 from typing import Any, Callable, Mapping
 
+from ird_ros.graph import names
 from ird_ros.launch.liveness import _close_participant, _open_participant
 
 __all__ = ["GRAPH_ITEMS", "LIFETIME", "SECOND_VIEW_AFTER", "SETTLE", "VIEW_NODE", "SecondView", "graph_only"]
 
-VIEW_NODE = "launcher_view"
+VIEW_NODE = names.NODE_LAUNCHER_VIEW
 SECOND_VIEW_AFTER = 5.0
 """Seconds a starting node may lack only graph entries before a second view is asked."""
 SETTLE = 1.0

@@ -48,6 +48,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping
 
+from ird_ros.graph import names
 from ird_ros.launch.events import ChildInfo, ChildState
 
 __all__ = ["LivenessChecker", "LivenessProcess", "Transition", "process_state", "STOPPED_STATES", "PING_PERIOD",
@@ -243,7 +244,7 @@ class LivenessChecker:
 
 # ------------------------------------------------------------------------ participants (rclpy contexts)
 
-PING_NODE = "launcher_ping"
+PING_NODE = names.NODE_LAUNCHER_PING
 
 
 @contextlib.contextmanager

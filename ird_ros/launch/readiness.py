@@ -64,7 +64,7 @@ from ird_ros.launch.supervisor import Supervisor
 
 __all__ = ["GraphProbe", "PingParticipant", "ReadinessMonitor", "PROBE_NODE", "PING_NODE"]
 
-PROBE_NODE = "launcher"
+PROBE_NODE = names.NODE_LAUNCHER
 
 
 class GraphProbe:

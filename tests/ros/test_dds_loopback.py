@@ -193,12 +193,35 @@ def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
         yield procs
 
 
+def shared_memory_files(pid: int) -> set[str]:
+    """Fast DDS's files under /dev/shm that process ``pid`` maps or holds open (its shared-memory
+    transport maps segments and ports there and holds their lock files open; LTTng's files, which
+    rcl maps, are not Fast DDS's)."""
+    maps = {line.split(None, 5)[5] for line in Path(f"/proc/{pid}/maps").read_text().splitlines()
+            if len(line.split(None, 5)) == 6}
+    opened = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            opened.add(os.readlink(fd))
+        except FileNotFoundError:  # closed while listing
+            continue
+    return {name for name in maps | opened if name.startswith(("/dev/shm/fastrtps_", "/dev/shm/sem.fastrtps_"))}
+
+
 def test_node_processes_bind_nothing_outside_loopback(graph: list[NodeProcess]) -> None:
     for proc in graph:
         sockets = bound_sockets(proc.pid)
         # DDS's receive sockets exist (unicast discovery and user traffic): the check sees them
         assert sum(1 for s in sockets if s[0] == "udp") >= 3, (proc.name, sockets)
         assert outside_loopback(proc.pid) == [], (proc.name, sockets)
+
+
+def test_node_processes_use_no_shared_memory_transport(graph: list[NodeProcess]) -> None:
+    """The profile leaves Fast DDS's shared memory out (its ports outlive killed processes and cut
+    later ones off, see the profile); without the profile a node maps its segments (next test)."""
+    assert "<type>SHM</type>" not in DDS_PROFILE.read_text()
+    for proc in graph:
+        assert shared_memory_files(proc.pid) == set(), proc.name
 
 
 def test_nodes_still_talk_over_loopback(graph: list[NodeProcess], ros_ctx: Any) -> None:
@@ -243,3 +266,5 @@ def test_without_the_profile_the_check_finds_sockets_outside(setting: dict[str, 
                                                      ready_text="world ready", ready_timeout=60.0) as proc:
         outside = outside_loopback(proc.pid)
         assert any(address in ("0.0.0.0", "::") for _, address, _ in outside), bound_sockets(proc.pid)
+        # Fast DDS's builtin transports include shared memory: the check above can fail
+        assert shared_memory_files(proc.pid), "no Fast DDS segment mapped without the profile"
