@@ -6,10 +6,11 @@ messages: each participant publishes its whole node-and-endpoint list again afte
 creates. The reader of that topic keeps one sample for all writers together (KEEP_LAST 1, no
 key), so when two participants' lists arrive together one of them can be dropped, and the
 reader's graph keeps that participant's older list until it creates another entity
-(ros2/rmw_fastrtps#792: "some services are discovered, some not"). Seen here once in CI: 90 s
-after a burst of nine stand-ins started, the probe listed three of them with their publishers
-but without the services they had created next, while the processes served. A node built from
-one burst of entities never publishes again, so the probe's reading stays wrong.
+(ros2/rmw_fastrtps#792: "some services are discovered, some not"). A node built from one burst
+of entities never publishes again, so the probe's reading would stay wrong. (The CI failure first
+read as this race had another cause, a destroyed lifecycle node left in a reused domain: see
+``ird_ros.runtime.lifecycle.ManagedNode.destroy_node``; the race is upstream's report, not
+reproduced here.)
 
 A participant opened later receives every writer's last list afresh (the topic is transient
 local), so ``SecondView`` opens one (node ``launcher_view``) when a starting node has lacked only

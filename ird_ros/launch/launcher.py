@@ -401,7 +401,7 @@ class GraphLauncher:
 
         Raises ``LaunchError`` at once if the readiness probe (the source of ``ready``, ``stalled``
         and ``recovered``) failed; the ``TimeoutError`` of a node that is stalled says what its
-        last liveness check saw."""
+        last liveness check saw, of a node still starting what it lacks to be ready."""
         if self._sup is None:
             raise LaunchError("start() first")
         monitor = self._monitor
@@ -414,9 +414,13 @@ class GraphLauncher:
             return self._sup.wait_for_event(kind, node, after=after, timeout=timeout, abort=probe_failed)
         except TimeoutError as exc:
             note = monitor.stall_note(node) if monitor is not None else ""
-            if not note:
+            if note:
+                raise TimeoutError(f"{exc}; {node} is stalled: {note}") from None
+            info = self._infos().get(node)
+            if monitor is None or info is None or info.state is not ChildState.STARTING:
                 raise
-            raise TimeoutError(f"{exc}; {node} is stalled: {note}") from None
+            lacks = "; ".join(monitor.missing(node, info.pid))
+            raise TimeoutError(f"{exc}; {node} (pid {info.pid}) is starting and lacks: {lacks}") from None
 
     def all_exited(self) -> bool:
         """True when no node runs and none will be respawned."""

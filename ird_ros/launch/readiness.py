@@ -182,6 +182,10 @@ class GraphProbe:
                     self._watch_topic(topic)
                 if self._received.get(topic, -1.0) < started_at:
                     missing.append(f"no message on {topic} yet")
+        if missing and any(not m.startswith("no message on ") for m in missing):
+            count = node.get_node_names_and_namespaces().count((name, "/"))
+            if count > 1:  # a query by node name reads one of them: an older process's, another graph's
+                missing.append(f"node /{name} {count} times in the graph")
         if recorded is not None:
             for topic in recorded:
                 subs = node.get_subscriptions_info_by_topic(topic)

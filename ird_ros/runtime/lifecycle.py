@@ -244,6 +244,14 @@ class ManagedNode(LifecycleNodeMixin, GuardedNode):
         return TransitionCallbackReturn.SUCCESS
 
     def destroy_node(self) -> None:
+        """Destroy the node and leave the graph now, whoever still holds this Python object.
+
+        rclpy's ``LifecycleNode`` keeps its state machine, which holds the rcl node, until the
+        object is garbage-collected: a destroyed node stayed in the graph (its lifecycle services
+        listed under its name) and kept its context's participant alive. Seen in the test suite,
+        where pytest keeps fixture values: a later test leasing the same domain ID found a second
+        ``/world`` whose services a by-name graph query read. The state machine is destroyed here.
+        """
         if self._created:  # not shut down through the lifecycle (e.g. a test's own executor)
             created, self._created = self._created, {}
             try:
@@ -251,6 +259,9 @@ class ManagedNode(LifecycleNodeMixin, GuardedNode):
             except Exception:  # noqa: BLE001 - destroying anyway
                 pass
         super().destroy_node()
+        machine = getattr(self, "_state_machine", None)
+        if machine is not None:
+            machine.destroy_when_not_in_use()
 
     # ------------------------------------------------------------------ parameters
 

@@ -69,3 +69,35 @@ def test_without_the_second_view_the_misread_node_never_gets_ready(blind_probe: 
     assert ": service /rob/stop not available\n" in text, text
     # the report shows what the node printed last: the stand-in got as far as serving
     assert "    last output: standin rob up" in text, text
+
+
+class _TwoWorlds:
+    """A graph reading with two nodes named /world, neither offering world's service or topics."""
+
+    def get_node_names_and_namespaces(self) -> list[tuple[str, str]]:
+        return [("launcher", "/"), ("world", "/"), ("world", "/")]
+
+    def get_service_names_and_types_by_node(self, name: str, namespace: str) -> list:
+        return []
+
+    def get_publishers_info_by_topic(self, topic: str) -> list:
+        return []
+
+
+def test_a_second_node_of_the_same_name_is_named_in_what_is_missing(ros_domain: Any) -> None:
+    """A node name twice in the graph (an older process's node in a reused domain, another graph)
+    makes by-name queries read either node: the probe says so beside what is missing."""
+    from ird_ros.graph import NODES_BY_NAME
+
+    spec = NODES_BY_NAME["world"]
+    probe = readiness.GraphProbe(ros_domain.domain_id, ros_domain.env())
+    try:
+        two = probe.missing(spec, 1, 0.0, {("world", "/")}, wait_topics=False, view=_TwoWorlds())
+        assert f"service {spec.services[0]} not available" in two and two[-1] == "node /world 2 times in the graph"
+        assert graph_view.graph_only(two)  # still decided by a graph reading (a fresh one may see one)
+        one = _TwoWorlds()
+        one.get_node_names_and_namespaces = lambda: [("world", "/")]  # type: ignore[method-assign]
+        assert not [m for m in probe.missing(spec, 1, 0.0, {("world", "/")}, wait_topics=False, view=one)
+                    if "times in the graph" in m]
+    finally:
+        probe.close()

@@ -171,3 +171,34 @@ def test_launcher_configures_and_activates_recorder_first(tmp_path: Path) -> Non
                 node.destroy_node()
     counts = {t.topic: t.count for t in storage.summarize(bag)}
     assert counts.get(names.TOPIC_PROXY, 0) == 1 and counts.get(names.TOPIC_TERRAIN_FEATURES, 0) == 1, counts
+
+
+def test_a_destroyed_managed_node_leaves_the_graph_while_its_object_lives(ros_ctx: Any, ros_node: Any) -> None:
+    """``destroy_node`` takes a managed node out of the graph at once, though a reference to the
+    Python object remains (pytest keeps fixture values): rclpy's lifecycle state machine held the
+    rcl node until garbage collection, so the node, its lifecycle services and its participant
+    outlived the test and polluted the next test that leased the same domain ID."""
+    from ird_ros.nodes.world import WorldNode
+    from ird_ros.runtime.lifecycle import TransitionCallbackReturn
+
+    # a namespace of its own: the module's world process is in this domain too
+    kept = WorldNode(context=ros_ctx, namespace="/leak_check", parameter_overrides=_small_world_parameters())
+    assert kept.trigger_configure() == TransitionCallbackReturn.SUCCESS, kept.transition_error
+    own = ("world", "/leak_check")
+    lifecycle = {f"/leak_check/world/{s}" for s in ("change_state", "get_state", "get_available_states",
+                                                     "get_available_transitions", "get_transition_graph")}
+    assert own in ros_node.get_node_names_and_namespaces()  # the same context: its graph is local
+    assert lifecycle <= {s for s, _ in ros_node.get_service_names_and_types()}
+    kept.destroy_node()
+    assert own not in ros_node.get_node_names_and_namespaces()
+    # the lifecycle services went with the state machine (rclpy keeps every node's
+    # get_type_description endpoint after destroy_node, plain nodes' too: not checked)
+    assert not lifecycle & {s for s, _ in ros_node.get_service_names_and_types()}
+    assert kept is not None  # still referenced here
+
+
+def _small_world_parameters() -> list[Any]:
+    from rclpy.parameter import Parameter
+
+    return [Parameter("height", value=5), Parameter("width", value=5), Parameter("horizon", value=4),
+            Parameter("condition", value="side_effects")]
