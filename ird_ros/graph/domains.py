@@ -4,8 +4,12 @@
 one N in 0..101 (IDs above 101 put DDS ports into Linux's ephemeral port range). Concurrent
 test runs, demos and CI on one machine that all lease through this module (or
 ``scripts/lib/ros_env.sh``, which uses the same lock files) never share a domain. The search
-starts at ``IRD_TEST_DOMAIN_BASE`` if set, otherwise at a value derived from the process id.
-The lock is released when the lease is released or the process exits.
+starts at ``IRD_TEST_DOMAIN_BASE`` if set, otherwise at a value derived from the process id, and
+each later search of the same process starts after the ID it leased last: an ID comes back to a
+process only after the others were tried, so whatever outlived a lease in its domain (a node an
+earlier test left in the graph, DDS's memory of a killed participant until its lease expires)
+does not meet the next lease's graph. The lock is released when the lease is released or the
+process exits.
 
 ``ros_env`` is the environment of a process in a private, localhost-only domain and
 ``ros_context`` an rclpy context in a domain (rclpy is imported only there, so this module
@@ -140,18 +144,25 @@ def _try_lock(domain_id: int) -> int | None:
     return fd
 
 
+_next_start: int | None = None
+"""Where this process's next default search starts: after the ID it leased last."""
+
+
 def lease_domain(*, start: int | None = None, log_dir: str | os.PathLike[str] | None = None) -> DomainLease:
     """Lease a free ROS domain ID in 0..101 (see the module docstring).
 
-    ``start``: first candidate (default: ``IRD_TEST_DOMAIN_BASE`` or derived from the pid);
+    ``start``: first candidate (default: after the ID this process leased last; the first time
+    ``IRD_TEST_DOMAIN_BASE`` or derived from the pid);
     candidates wrap around 0..101, skipping the current ``ROS_DOMAIN_ID``. ``log_dir``: ROS_LOG_DIR for processes in the domain
     (default: a fresh temporary directory removed on release).
     Raises ``RuntimeError`` when all 102 IDs are held.
     """
+    global _next_start
     n = DOMAIN_ID_MAX + 1
+    default = start is None
     if start is None:
         base = os.environ.get("IRD_TEST_DOMAIN_BASE")
-        start = int(base) if base else (os.getpid() * 7919) % n
+        start = _next_start if _next_start is not None else int(base) if base else (os.getpid() * 7919) % n
     current = os.environ.get("ROS_DOMAIN_ID", "")
     for i in range(n):
         candidate = (start + i) % n
@@ -165,6 +176,8 @@ def lease_domain(*, start: int | None = None, log_dir: str | os.PathLike[str] | 
             tmp = tempfile.TemporaryDirectory(prefix=f"ird_ros_log_d{candidate}_")
             log_dir = tmp.name
         Path(log_dir).mkdir(parents=True, exist_ok=True)
+        if default:
+            _next_start = (candidate + 1) % n
         return DomainLease(candidate, Path(log_dir), fd, tmp)
     raise RuntimeError(f"all ROS domain IDs 0..{DOMAIN_ID_MAX} are leased (locks in {DOMAIN_LOCK_DIR})")
 
