@@ -529,13 +529,17 @@ def test_liveness_events_are_recorded_for_the_current_ready_process_only(make) -
 
 
 class StubMonitor:
-    """The launcher's view of a readiness monitor: its ``error`` and the ``stall_note`` of a node."""
+    """The launcher's view of a readiness monitor: its ``error``, the ``stall_note`` of a node and
+    what a starting node lacks (``missing``)."""
 
-    def __init__(self, error: BaseException | None = None, note: str = "") -> None:
-        self.error, self.note = error, note
+    def __init__(self, error: BaseException | None = None, note: str = "", lacks: tuple[str, ...] = ()) -> None:
+        self.error, self.note, self.lacks = error, note, lacks
 
     def stall_note(self, _name: str) -> str:
         return self.note
+
+    def missing(self, _name: str, _pid: int | None) -> list[str]:
+        return list(self.lacks)
 
 
 def test_a_wait_ends_when_abort_raises_and_a_stalled_wait_says_what_was_seen(make) -> None:
@@ -561,10 +565,13 @@ def test_a_wait_ends_when_abort_raises_and_a_stalled_wait_says_what_was_seen(mak
     with pytest.raises(TimeoutError, match=r"no 'recovered' event for n within 0.2 s; .*; n is stalled: "
                                            r"process 7 state S; /n/get_parameters not discovered \(was before\)"):
         launcher.wait_for_event("recovered", "n", timeout=0.2)
-    launcher._monitor = StubMonitor()
+    launcher._monitor = StubMonitor(lacks=("service /n/s not available", "node /n 2 times in the graph"))
     with pytest.raises(TimeoutError) as plain:
         launcher.wait_for_event("recovered", "n", timeout=0.2)
     assert "stalled" not in str(plain.value)
+    # n never got ready (the stub supervisor has no probe): the message says what it lacks
+    assert str(plain.value).endswith(f"; n (pid {sup.infos()['n'].pid}) is starting and lacks: "
+                                     "service /n/s not available; node /n 2 times in the graph"), plain.value
 
 
 # ---------------------------------------------------------------------- issue 43: start-up stops, output lines
