@@ -167,17 +167,20 @@ class _Settling:
     def others(self) -> list[str]:
         return [n for n in (self.view.nodes if self.view else ()) if n != self.own]
 
+    def _other_names(self) -> set[str]:
+        return {n.lstrip("/") for n in self.others()}
+
     def quiet_needed(self) -> float | None:
         """Seconds without change that complete the view now; None while it cannot be complete."""
-        others = {n.lstrip("/") for n in self.others()}
+        others = self._other_names()
         if not others:
             return None
-        return self.quiet if others & set(NODES_BY_NAME) else max(self.quiet, FOREIGN_QUIET)
+        return self.quiet if others & NODES_BY_NAME.keys() else max(self.quiet, FOREIGN_QUIET)
 
     def launched_unseen(self) -> list[str]:
         """What a launched graph lacks while only the launcher's own nodes of it are found."""
-        others = {n.lstrip("/") for n in self.others()}
-        if others & set(names.LAUNCHER_NODES) and not others & set(NODES_BY_NAME):
+        others = self._other_names()
+        if others & set(names.LAUNCHER_NODES) and not others & NODES_BY_NAME.keys():
             return ["the launched nodes (only the launcher's own nodes are in the graph)"]
         return []
 
