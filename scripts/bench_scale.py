@@ -13,7 +13,8 @@ then the medians per size and method with their ratio to the reference size's.
 
 Goals (docs/benchmarks.md, "Robot-sized maps"): at 64x64, T = 120, d = 50 a converged posterior
 (evidence + sampling) within 10 s on a 2-core machine for both Z-methods, a plan within 1 s.
-Times are wall clock of one process: run it on an otherwise idle machine.
+Times are wall clock of one process: run it on an otherwise idle machine. Ctrl-C (SIGINT) stops
+a long run and still prints and writes the runs measured so far.
 """
 
 from __future__ import annotations
@@ -116,9 +117,14 @@ def main(argv: "list[str] | None" = None) -> int:
             bar.set_postfix_str(f"{size}x{size} {method} seed {seed}")
             spec = TrialSpec(args.condition, seed, size=size, horizon=horizon, novelty_feature=args.novelty_feature)
             rows.append(time_trial(spec, method, args.min_ess, args.max_iterations))
+            bar.write(format_rows(rows[-1:]).splitlines()[-1])  # each row as it is measured
             bar.update(1)
+    except KeyboardInterrupt:  # a long run stopped by hand keeps, prints and writes what it measured
+        print(f"\ninterrupted: {len(rows)} of {len(runs)} runs measured", file=sys.stderr)
     finally:
         bar.close()
+    if not rows:
+        return 130
     print()
     print(format_rows(rows))
     print()

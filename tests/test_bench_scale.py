@@ -92,3 +92,25 @@ def test_main_prints_the_tables_and_writes_every_row(bench, tmp_path, capsys) ->
         table = list(csv.reader(handle))
     assert tuple(table[0]) == TIMING_COLUMNS and len(table) == 3
     assert [r[TIMING_COLUMNS.index("size")] for r in table[1:]] == ["6", "7"]
+
+
+def test_an_interrupted_run_prints_and_writes_the_runs_it_measured(bench, tmp_path, capsys, monkeypatch) -> None:
+    measured = iter([row(6, "maxent_z", 0.1, 0.2, 0.01)])
+
+    def one_then_interrupt(spec, method, min_ess, max_iterations):
+        if spec.num_proxy_samples == 10:  # the warm-up call on the tiny map
+            return row(6, method, 0.0, 0.0, 0.0)
+        try:
+            return next(measured)
+        except StopIteration:
+            raise KeyboardInterrupt from None
+
+    monkeypatch.setattr(bench, "time_trial", one_then_interrupt)
+    out = tmp_path / "timing.csv"
+    assert bench.main(["--sizes", "6:8", "7:10", "--seeds", "0", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "interrupted: 1 of 2 runs measured" in captured.err and "x ref" in captured.out
+    with open(out, newline="") as handle:
+        assert len(list(csv.reader(handle))) == 2  # the header and the one run
+    measured = iter([])
+    assert bench.main(["--sizes", "6:8", "--seeds", "0"]) == 130  # nothing measured: nothing to print

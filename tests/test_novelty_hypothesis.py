@@ -1,18 +1,22 @@
 """The *novel* hypothesis feature (ird_core.experiments.novelty_hypothesis): zero in training,
-the novelty rule on the test map, invisible to the proxy's behaviour, so its weight keeps its
-prior; the literal plan does not change."""
+the novelty rule on the test map at the training cells' rms feature norm (so the calibrated prior
+gives a novel cell the reward spread 1 / temperature, and rescaled observations rescale it),
+invisible to the proxy's behaviour, so its weight keeps its prior; the literal plan does not
+change."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 
 from ird_core import planning, posterior
-from ird_core.experiments import trials
+from ird_core.experiments import cli, trials
 from ird_core.experiments.novelty_hypothesis import NOVELTY_FEATURE, with_novelty_feature
 from ird_core.planning.novelty import novel_cells
+from ird_core.posterior import CALIBRATED_TEMPERATURE, feature_scale
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import Terrain
 
@@ -29,10 +33,35 @@ def test_the_feature_is_zero_in_training_and_the_novelty_rule_on_the_test_map(pa
     np.testing.assert_array_equal(novel.train_features[..., :-1], inst.train_features)
     np.testing.assert_array_equal(novel.test_features[..., :-1], inst.test_features)
     assert not novel.train_features[..., -1].any()
-    np.testing.assert_array_equal(novel.test_features[..., -1], novel_cells(inst.train_features, inst.test_features))
+    np.testing.assert_array_equal(novel.test_features[..., -1],
+                                  novel_cells(inst.train_features, inst.test_features) * feature_scale(inst.train_features))
     if inst.observation_model is not None:  # latent: lava's observations lie far from the safe terrains'
         lava = inst.test_labels == Terrain.LAVA
         assert novel.test_features[..., -1][lava].all(), "lava is unlike every training cell"
+
+
+def test_a_novel_cell_gets_the_calibrated_reward_spread_of_a_training_cell(pair) -> None:
+    """sigma = 1 / (temperature * rms norm) times the value (the rms norm) is 1 / temperature: the
+    novel weight gives a novel cell the prior reward spread the rule gives a training cell. With
+    terrain indicators no test cell is novel (every two terrains are equally far apart)."""
+    inst, novel = pair
+    values = novel.test_features[..., -1]
+    if inst.observation_model is None:
+        assert not values.any()
+        return
+    assert values.any(), "the latent test map has novel cells (lava at least)"
+    sigma = trials.TrialSpec(condition="latent_raw", seed=0).prior_sigma_for(novel)
+    np.testing.assert_allclose(sigma * values[values > 0], 1.0 / CALIBRATED_TEMPERATURE, rtol=1e-12)
+
+
+def test_rescaled_observations_rescale_the_feature_and_keep_the_same_cells(pair) -> None:
+    inst, novel = pair
+    c = 3.5
+    scaled = with_novelty_feature(dataclasses.replace(inst, train_features=c * inst.train_features,
+                                                      test_features=c * inst.test_features))
+    np.testing.assert_allclose(scaled.test_features[..., -1], c * novel.test_features[..., -1], rtol=1e-12)
+    spec = trials.TrialSpec(condition="latent_raw", seed=0)
+    assert spec.prior_sigma_for(scaled) == pytest.approx(spec.prior_sigma_for(novel) / c, rel=1e-12)
 
 
 def test_the_proxy_is_untouched_and_its_behaviour_has_no_novel_count(pair) -> None:
@@ -60,6 +89,27 @@ def test_the_novel_weight_moves_the_log_posterior_only_through_the_prior(pair, m
     prior_gap = -0.5 * (shifted[:, -1] ** 2 - weights[:, -1] ** 2)
     np.testing.assert_allclose(model.log_density(shifted) - model.log_density(weights), prior_gap,
                                rtol=1e-9, atol=1e-9)
+
+
+def test_the_value_one_keeps_the_bare_novelty_rule_and_a_bad_value_is_refused_naming_it(pair) -> None:
+    inst, _ = pair
+    ones = with_novelty_feature(inst, "one")
+    np.testing.assert_array_equal(ones.test_features[..., -1], novel_cells(inst.train_features, inst.test_features))
+    with pytest.raises(ValueError, match="^value"):
+        with_novelty_feature(inst, "two")
+    with pytest.raises(ValueError, match="^novelty_value"):
+        trials.TrialSpec("latent_raw", 0, novelty_value="two")
+
+
+def test_the_flags_reach_the_spec_and_the_report_states_the_value(tmp_path) -> None:
+    settings = cli.trial_settings(cli.build_parser().parse_args(["--novelty-feature", "--novelty-value", "one"]))
+    spec = trials.TrialSpec("latent_raw", 2, size=7, horizon=8, obs_dim=6, **{
+        k: v for k, v in settings.items() if k not in ("size", "horizon", "obs_dim")})
+    assert spec.novelty_feature and spec.novelty_value == "one"
+    assert set(np.unique(trials.trial_instance(spec).test_features[..., -1])) == {0.0, 1.0}
+    assert cli.main(["--novelty-feature", "--quick", "--trials", "1", "--conditions", "latent_raw",
+                     "--z-methods", "maxent_z", "--no-factorial", "--workers", "1", "--out", str(tmp_path)]) == 0
+    assert json.loads((tmp_path / "run.json").read_text())["settings"]["novelty_value"] == "feature_scale"
 
 
 def test_a_second_novel_feature_is_refused_naming_the_field(pair) -> None:

@@ -78,6 +78,7 @@ from typing import Any
 from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES
+from ird_core.experiments.novelty_hypothesis import NOVELTY_VALUES
 from ird_core.experiments.summaries import aggregate
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
@@ -139,8 +140,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the control planners: prior only, novelty-avoiding, the other Sample-Z reading, "
                         "Sample-Z without its own term")
     p.add_argument("--novelty-feature", action=argparse.BooleanOptionalAction, default=None,
-                   help="add the hypothesis feature 'novel' (1 on test cells unlike every training cell, 0 in "
+                   help="add the hypothesis feature 'novel' (nonzero on test cells unlike every training cell, 0 in "
                         "training; ird_core.experiments.novelty_hypothesis) to IRD's posterior and plans")
+    p.add_argument("--novelty-value", choices=NOVELTY_VALUES, default=None,
+                   help="the novel feature's value on novel cells: the training cells' rms feature norm "
+                        "(feature_scale, the default: a novel cell gets the calibrated prior's reward spread) "
+                        "or 1 (one, the value before; the committed results say which they used)")
     p.add_argument("--hypothesis", choices=HYPOTHESES, default=None,
                    help="IRD's hypothesis space in the latent conditions: linear in the observations (the paper's, "
                         "default) or rff, random Fourier features of an RBF kernel on them "
@@ -214,7 +219,7 @@ def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
 
 #: TrialSpec fields set by an optional flag of the same name (None: the TrialSpec default).
 MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "sample_scale", "risk", "risk_level", "frontier", "controls",
-                               "novelty_feature", "hypothesis", "rff_features")
+                               "novelty_feature", "novelty_value", "hypothesis", "rff_features")
 
 
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -266,10 +271,11 @@ def run_dask(specs: list[TrialSpec], client: Any, progress: Any = None) -> list[
 
 def _shown_settings(args: argparse.Namespace, settings: dict[str, Any], conditions: list[str],
                     trials: int) -> dict[str, Any]:
-    """The settings the report states: each method's effective sampler (defaults included) and
-    the run's trials, seed, workers and scheduler."""
+    """The settings the report states: each method's effective sampler (defaults included), the
+    novel feature's value when the feature is on, and the run's trials, seed, workers and scheduler."""
     effective = TrialSpec(conditions[0], 0, **settings)
-    return dict(settings, **{f"{z}_sampler": effective.sampler(z) for z in Z_METHODS}, trials=trials,
+    novelty = {"novelty_value": effective.novelty_value} if effective.novelty_feature else {}
+    return dict(settings, **novelty, **{f"{z}_sampler": effective.sampler(z) for z in Z_METHODS}, trials=trials,
                 seed=args.seed, workers=args.workers, scheduler=args.scheduler)
 
 

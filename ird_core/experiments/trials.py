@@ -64,7 +64,7 @@ import numpy as np
 from ird_core import mcmc, mdp, planning, posterior
 from ird_core.experiments.controls import control_results, frontier_results
 from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, hypothesis_instance
-from ird_core.experiments.novelty_hypothesis import with_novelty_feature
+from ird_core.experiments.novelty_hypothesis import NOVELTY_VALUES, with_novelty_feature
 from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
 from ird_core.planning.risk_measures import check_risk
 from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
@@ -239,6 +239,7 @@ class TrialSpec:
     controls: bool = False  # the control planners and posteriors (ird_core.experiments.controls)
     sample_scale: str = "training_spread"  # the IRD plans' samples: "training_spread" (planning.sample_scale) or "none"
     novelty_feature: bool = False  # IRD's hypothesis features gain "novel" (experiments.novelty_hypothesis)
+    novelty_value: str = "feature_scale"  # its value on novel cells: one of NOVELTY_VALUES
     hypothesis: str = "linear"  # latent conditions: "rff" = random Fourier features (experiments.kernel_hypothesis)
     rff_features: int = DEFAULT_RFF_FEATURES  # D of the "rff" hypothesis space
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
@@ -264,6 +265,8 @@ class TrialSpec:
             raise ValueError(f"counts must be one of {PROXY_COUNTS}, got {self.counts!r}")
         self.observation_model()
         check_risk(self.risk, None if self.risk == "min" else self.risk_level)
+        if self.novelty_value not in NOVELTY_VALUES:
+            raise ValueError(f"novelty_value must be one of {NOVELTY_VALUES}, got {self.novelty_value!r}")
         if self.hypothesis not in HYPOTHESES:
             raise ValueError(f"hypothesis must be one of {HYPOTHESES}, got {self.hypothesis!r}")
         if isinstance(self.rff_features, bool) or not isinstance(self.rff_features, (int, np.integer)) \
@@ -346,7 +349,7 @@ def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: st
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
     """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``; with
-    ``novelty_feature``, its hypothesis features gain the *novel* feature; with ``hypothesis`` "rff",
+    ``novelty_feature``, its hypothesis features gain the *novel* feature (``novelty_value`` on novel cells); with ``hypothesis`` "rff",
     the latent conditions' hypothesis features are random Fourier features (applied first)."""
     if spec.world:
         inst = world_file.load_world(spec.world)
@@ -354,7 +357,7 @@ def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
         inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
                                       obs_dim=spec.obs_dim)
     inst = hypothesis_instance(inst, spec.hypothesis, spec.rff_features)
-    return with_novelty_feature(inst) if spec.novelty_feature else inst
+    return with_novelty_feature(inst, spec.novelty_value) if spec.novelty_feature else inst
 
 
 def run_trial(spec: TrialSpec) -> list[TrialResult]:
