@@ -42,17 +42,19 @@ from ird_core.worlds.lavaland import CONDITIONS  # noqa: E402
 POSTERIOR_GOAL_S, PLAN_GOAL_S = 10.0, 1.0
 
 
+def format_row(r: ScaleTiming) -> str:
+    """One run's line: phases in seconds, diagnostics, and whether it converged."""
+    return (f"{r.size:>3}x{r.size:<3} {r.horizon:>4} {r.method:<9} {r.seed:>4} {r.dim:>3} | "
+            f"{r.evidence_seconds:>8.2f} {r.sample_seconds:>7.2f} {r.posterior_seconds:>9.2f} | "
+            f"{r.plan_seconds:>6.3f} {r.literal_seconds:>7.3f} | {r.r_hat_max:>6.3f} {r.ess_min:>5.0f} "
+            f"{r.iterations:>5d} {r.evaluations:>6d} {'yes' if r.converged else 'NO'}")
+
+
 def format_rows(rows: "list[ScaleTiming]") -> str:
-    """One line per run: phases in seconds, diagnostics, and whether it converged."""
+    """A header, then one :func:`format_row` line per run."""
     head = (f"{'size':>7} {'T':>4} {'method':<9} {'seed':>4} {'d':>3} | {'evidence':>8} {'sample':>7} "
             f"{'posterior':>9} | {'plan':>6} {'literal':>7} | {'R-hat':>6} {'ESS':>5} {'iter':>5} {'calls':>6} conv")
-    lines = [head, "-" * len(head)]
-    for r in rows:
-        lines.append(f"{r.size:>3}x{r.size:<3} {r.horizon:>4} {r.method:<9} {r.seed:>4} {r.dim:>3} | "
-                     f"{r.evidence_seconds:>8.2f} {r.sample_seconds:>7.2f} {r.posterior_seconds:>9.2f} | "
-                     f"{r.plan_seconds:>6.3f} {r.literal_seconds:>7.3f} | {r.r_hat_max:>6.3f} {r.ess_min:>5.0f} "
-                     f"{r.iterations:>5d} {r.evaluations:>6d} {'yes' if r.converged else 'NO'}")
-    return "\n".join(lines)
+    return "\n".join([head, "-" * len(head), *(format_row(r) for r in rows)])
 
 
 def format_medians(rows: "list[ScaleTiming]") -> str:
@@ -117,7 +119,7 @@ def main(argv: "list[str] | None" = None) -> int:
             bar.set_postfix_str(f"{size}x{size} {method} seed {seed}")
             spec = TrialSpec(args.condition, seed, size=size, horizon=horizon, novelty_feature=args.novelty_feature)
             rows.append(time_trial(spec, method, args.min_ess, args.max_iterations))
-            bar.write(format_rows(rows[-1:]).splitlines()[-1])  # each row as it is measured
+            bar.write(format_row(rows[-1]))  # each row as it is measured
             bar.update(1)
     except KeyboardInterrupt:  # a long run stopped by hand keeps, prints and writes what it measured
         print(f"\ninterrupted: {len(rows)} of {len(runs)} runs measured", file=sys.stderr)

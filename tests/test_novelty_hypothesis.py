@@ -33,8 +33,8 @@ def test_the_feature_is_zero_in_training_and_the_novelty_rule_on_the_test_map(pa
     np.testing.assert_array_equal(novel.train_features[..., :-1], inst.train_features)
     np.testing.assert_array_equal(novel.test_features[..., :-1], inst.test_features)
     assert not novel.train_features[..., -1].any()
-    np.testing.assert_array_equal(novel.test_features[..., -1],
-                                  novel_cells(inst.train_features, inst.test_features) * feature_scale(inst.train_features))
+    expected = novel_cells(inst.train_features, inst.test_features) * feature_scale(inst.train_features)
+    np.testing.assert_array_equal(novel.test_features[..., -1], expected)
     if inst.observation_model is not None:  # latent: lava's observations lie far from the safe terrains'
         lava = inst.test_labels == Terrain.LAVA
         assert novel.test_features[..., -1][lava].all(), "lava is unlike every training cell"

@@ -349,8 +349,9 @@ def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: st
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
     """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``; with
-    ``novelty_feature``, its hypothesis features gain the *novel* feature (``novelty_value`` on novel cells); with ``hypothesis`` "rff",
-    the latent conditions' hypothesis features are random Fourier features (applied first)."""
+    ``novelty_feature``, its hypothesis features gain the *novel* feature (``novelty_value`` on
+    novel cells); with ``hypothesis`` "rff", the latent conditions' hypothesis features are random
+    Fourier features (applied first)."""
     if spec.world:
         inst = world_file.load_world(spec.world)
     else:
