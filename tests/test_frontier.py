@@ -4,7 +4,6 @@ goal check's verdicts (tiny maps, few samples)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -14,6 +13,7 @@ from ird_core import experiments as ex
 from ird_core import planning, posterior
 from ird_core.experiments import frontier_report
 from ird_core.experiments.controls import FRONTIER_RISKS
+from ird_core.experiments.report import RunRecord
 from ird_core.experiments.summaries import aggregate
 from ird_core.experiments.trials import trial_instance, trial_posterior
 from ird_core.planning.novelty import novel_cells, novelty_avoiding_path
@@ -96,8 +96,9 @@ def test_the_goal_check_passes_only_when_every_bar_is_met() -> None:
 
 def test_frontier_report_writes_the_table_and_a_picture_per_condition(trial, tmp_path) -> None:
     _, rows = trial
-    run = dataclasses.make_dataclass("Run", ["command"])("test")
+    run = RunRecord("test", 0.0, {}, "git 0123456789ab")
     paths = frontier_report.write_frontier(tmp_path, aggregate(rows), run)
     assert [p.name for p in paths] == ["frontier.md", "frontier_latent_raw.png"]
     text = (tmp_path / "frontier.md").read_text()
     assert "| latent_raw | maxent_z/cvar0.25 |" in text and "Goal check" in text
+    assert "Code: git 0123456789ab\n" in text

@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from ird_core import planning, posterior
 from ird_core.experiments import scale, scale_cli, trials
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import Terrain
@@ -34,6 +35,41 @@ def test_a_map_without_lava_is_refused_naming_the_terrain() -> None:
         scale.lava_values(np.zeros((2, 2, 3)), np.zeros((2, 2), dtype=int), np.ones((1, 3)))
 
 
+def test_target_signal_is_the_mean_rewards_target_minus_median_dirt_over_the_dirt_spread() -> None:
+    rng = np.random.default_rng(1)
+    labels = np.array([[0, 2, 1], [0, 0, 2], [1, 0, 3]])
+    features = rng.normal(size=(3, 3, 4))
+    weights = rng.normal(size=(6, 4))
+    mean_reward = {(r, c): float(np.mean([w @ features[r, c] for w in weights])) for r in range(3) for c in range(3)}
+    dirt = [mean_reward[cell] for cell in [(0, 0), (1, 0), (1, 1), (2, 1)]]
+    target = (mean_reward[(0, 1)] + mean_reward[(1, 2)]) / 2
+    expected = (target - np.median(dirt)) / np.std(dirt)
+    assert scale.target_signal(features, labels, weights) == pytest.approx(expected, rel=1e-12)
+    # one weight vector is the proxy's case; the sign follows the target
+    assert scale.target_signal(features, labels, -weights[0]) == pytest.approx(
+        -scale.target_signal(features, labels, weights[0]), rel=1e-12)
+
+
+def test_target_signal_on_indicator_features_is_infinite_in_the_targets_direction() -> None:
+    labels = np.array([[0, 0, 2]])
+    features = np.eye(3)[labels]
+    assert scale.target_signal(features, labels, np.array([0.1, -0.2, 1.0])) == np.inf
+    assert scale.target_signal(features, labels, np.array([0.1, -0.2, -1.0])) == -np.inf
+    assert np.isnan(scale.target_signal(features, labels, np.array([0.5, 0.0, 0.5])))
+    # dirt cells one rounding step apart are still the same reward (a matrix product may do that)
+    rounded = features.copy()
+    rounded[0, 1, 0] = np.nextafter(1.0, 2.0)
+    assert scale.target_signal(rounded, labels, np.array([0.1, -0.2, 1.0])) == np.inf
+
+
+@pytest.mark.parametrize("terrain", [Terrain.TARGET, Terrain.DIRT])
+def test_target_signal_without_a_target_or_dirt_cell_is_refused_naming_the_terrain(terrain: Terrain) -> None:
+    labels = np.full((2, 2), int(Terrain.GRASS))
+    labels[0, 0] = int(Terrain.TARGET if terrain == Terrain.DIRT else Terrain.DIRT)
+    with pytest.raises(ValueError, match=f"terrain {int(terrain)}"):
+        scale.target_signal(np.ones((2, 2, 3)), labels, np.ones((1, 3)))
+
+
 @pytest.mark.parametrize("condition", ["side_effects", "latent_raw"])
 @pytest.mark.parametrize("method", trials.Z_METHODS)
 def test_the_diagnosis_describes_the_plan_the_experiments_score(condition: str, method: str) -> None:
@@ -46,6 +82,7 @@ def test_the_diagnosis_describes_the_plan_the_experiments_score(condition: str, 
     assert row.parked == (labels[main.cells[-1]] == Terrain.LAVA)
     assert 1 <= row.lava_cells <= row.lava_steps or row.lava_steps == row.lava_cells == 0
     assert row.r_hat_max == main.r_hat_max
+    assert row.reached_target == main.reached_target
     assert 0.0 <= row.share_below <= 1.0 and row.lava_value_sd >= 0.0
     again = scale.diagnose(spec, method)  # seeded: the same numbers but the time
     assert dataclasses.replace(again, infer_seconds=0.0) == dataclasses.replace(row, infer_seconds=0.0)
@@ -62,6 +99,22 @@ def test_the_indicator_conditions_lava_value_is_the_lava_weight_minus_the_dirt_w
     assert row.share_below == pytest.approx(np.mean(values < 0))
     proxy = inst.proxy_weights
     assert row.proxy_lava_value == pytest.approx(proxy[names.index("lava")] - proxy[names.index("dirt")], abs=1e-12)
+    # indicator features: every dirt cell has one reward, so the target stands infinitely far off
+    assert row.proxy_target_signal == np.inf  # the proxy puts the target (1) above dirt (0.1)
+    assert abs(row.target_signal) == np.inf
+
+
+def test_the_target_margin_is_positive_exactly_when_a_target_cell_is_the_best_safe_cell() -> None:
+    spec = trials.TrialSpec(condition="side_effects", seed=1, z_methods=("maxent_z",), **TINY)
+    row = scale.diagnose(spec, "maxent_z")
+    inst = lavaland.make_instance("side_effects", 1, size=5, horizon=5)
+    post = trials.trial_posterior(spec, inst, "maxent_z")
+    test = lavaland.test_mdp(inst)
+    reference = posterior.proxy_feature_expectations(inst, spec.observation_model()) / (inst.train_horizon + 1)
+    reward = planning.per_step_reward(test, spec.planning_samples(inst, post.samples), trials.MAIN_BASELINE, reference)
+    safe = {int(t): reward[inst.test_labels == int(t)] for t in (Terrain.DIRT, Terrain.GRASS, Terrain.TARGET)}
+    best_other = max(values.max() for t, values in safe.items() if values.size and t != int(Terrain.TARGET))
+    assert row.target_margin == pytest.approx(safe[int(Terrain.TARGET)].max() - best_other, abs=1e-12)
 
 
 @pytest.mark.parametrize("text", ["32", "32:x", "2:10", "32:0", "a:b:c"])

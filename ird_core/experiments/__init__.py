@@ -9,7 +9,7 @@ Dask map), ``progress`` (tqdm bars, imported only when drawn), ``cli`` / ``activ
 command lines, ``main(argv) -> int``), ``posterior_terrain`` (the posterior's spread per terrain),
 ``scale`` (where IRD goes wrong on robot-sized maps), ``scale_timing`` (what a converged
 posterior and a plan cost at a map size), ``novelty_hypothesis`` (the *novel* hypothesis
-feature, zero in training).
+feature, zero in training), ``provenance`` (which code produced a result).
 """
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ from typing import Any
 
 from ird_core.experiments import active, active_report, parallel
 from ird_core.experiments.chunks import load_chunks
+from ird_core.experiments.provenance import code_version
 from ird_core.experiments.report import RunRecord
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS
@@ -89,13 +90,14 @@ def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], setting
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"{len(specs)} trials ({args.trials} per condition x {len(args.conditions)} conditions), "
           f"{parallel.describe(args.workers, args.scheduler)}", file=sys.stderr)
+    code = code_version()  # before any trial: the code that runs them
     t0 = time.monotonic()
     per_trial = parallel.parallel_map(active.run_trial, specs, args.workers, args.scheduler)
     wall = time.monotonic() - t0
     results = [r for rs in per_trial for r in rs]
     summaries = active.aggregate(results)
     shown = dict(settings, trials=args.trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
-    active_report.write_report(args.out, results, summaries, args.conditions, RunRecord(command, wall, shown))
+    active_report.write_report(args.out, results, summaries, args.conditions, RunRecord(command, wall, shown, code))
     print("\n".join(active_report.headline(results, summaries, args.conditions, settings["query_counts"],
                                            settings["strategies"])))
     print(f"wall time {wall:.1f} s; outputs in {args.out}")
@@ -115,7 +117,7 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
     conditions = list(dict.fromkeys(r.condition for r in results))
     out.mkdir(parents=True, exist_ok=True)
     active_report.write_report(out, results, active.aggregate(results), conditions,
-                               RunRecord(merged.command, merged.wall, merged.settings))
+                               RunRecord(merged.command, merged.wall, merged.settings, merged.code))
     print(f"report rewritten in {out}")
     return 0
 

@@ -97,7 +97,7 @@ def write_markdown(path: Path, results: Sequence[active.ActiveResult], summaries
     settings = run.settings
     counts, strategies = tuple(settings["query_counts"]), tuple(settings["strategies"])
     text = ["# Designer in the loop: answered queries vs risk aversion", "",
-            f"Command: `{run.command}`", "",
+            f"Command: `{run.command}`", "", f"Code: {run.code}", "",
             f"Wall time: {run.wall:.1f} s ({describe(settings['workers'], settings['scheduler'])}).", "",
             "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items() if k not in ("workers", "scheduler")),
             "", "IRD plan: per_step x training_features (exact DP on all posterior samples), re-planned after every "
@@ -236,6 +236,6 @@ def write_report(out: Path, results: Sequence[active.ActiveResult], summaries: S
               (dict(dataclasses.asdict(r), cells=cells_text(r.cells)) for r in results))
     write_markdown(out / "active.md", results, summaries, conditions, run)
     figures = [plot_condition(out, summaries, c) for c in conditions]
-    write_run_json(out / "run.json", run.command, run.wall, run.settings, figures)
+    write_run_json(out / "run.json", run.command, run.wall, run.settings, figures, run.code)
     return figures
 

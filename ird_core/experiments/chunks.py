@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Hashable, Iterable, Mapping, Sequence, TypeVar
 
+from ird_core.experiments.provenance import NOT_RECORDED, merged_code
+
 __all__ = ["CHUNK_KEYS", "MergedRun", "read_run", "merge_runs", "load_chunks"]
 
 T = TypeVar("T")
@@ -25,11 +27,13 @@ CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
 
 @dataclass(frozen=True)
 class MergedRun:
-    """How the merged report states its run: the command, the wall time (s) and the settings."""
+    """How the merged report states its run: the command, the wall time (s), the settings and the
+    code that ran (``provenance.merged_code`` of the chunks')."""
 
     command: str
     wall: float
     settings: dict[str, Any]
+    code: str
 
 
 def read_run(source: Path) -> dict[str, Any]:
@@ -63,7 +67,8 @@ def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seed
     if len(runs) > 1:
         settings.update(trials=len(distinct), seed=f"{distinct[0]}..{distinct[-1]} in {len(runs)} chunks")
         command = " && ".join(run["command"] for run in runs)
-    return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings)
+    return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings,
+                     merged_code(str(run.get("code", NOT_RECORDED)) for run in runs))
 
 
 def load_chunks(out: Path, chunks: "Sequence[Path] | None", trials_name: str,

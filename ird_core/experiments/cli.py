@@ -79,6 +79,7 @@ from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES
 from ird_core.experiments.novelty_hypothesis import NOVELTY_VALUES
+from ird_core.experiments.provenance import code_version
 from ird_core.experiments.summaries import aggregate
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
@@ -290,11 +291,12 @@ def run_experiment(args: argparse.Namespace, settings: dict[str, Any], condition
     args.out.mkdir(parents=True, exist_ok=True)
     where = parallel.describe(args.workers, args.scheduler)
     print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), {where}", file=sys.stderr)
+    code = code_version()  # before any trial: the code that runs them
     t0 = time.monotonic()
     results = _flatten(parallel.parallel_map(run_trial, specs, args.workers, args.scheduler))
     wall = time.monotonic() - t0
     summaries = aggregate(results)
-    run = report.RunRecord(command, wall, _shown_settings(args, settings, conditions, trials))
+    run = report.RunRecord(command, wall, _shown_settings(args, settings, conditions, trials), code)
     report.write_report(args.out, results, summaries, run)
     frontier_report.write_frontier(args.out, summaries, run)
     print(report.markdown_table(summaries, "main"))
@@ -317,7 +319,7 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
         return 2
     results.sort(key=lambda r: (report.ORDER.index(r.condition), r.seed))  # stable: a trial's rows keep their order
     summaries = aggregate(results)
-    run = report.RunRecord(merged.command, merged.wall, merged.settings)
+    run = report.RunRecord(merged.command, merged.wall, merged.settings, merged.code)
     out.mkdir(parents=True, exist_ok=True)
     report.write_report(out, results, summaries, run)
     frontier_report.write_frontier(out, summaries, run)

@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from ird_core import style
 from ird_core.experiments.summaries import CellSummary
+
+if TYPE_CHECKING:
+    from ird_core.experiments.report import RunRecord
 
 __all__ = ["GOAL_LAVA", "GOAL_TARGET_RATIO", "GOAL_GAP", "goal_check", "frontier_markdown", "plot_frontier",
            "write_frontier"]
@@ -139,11 +142,11 @@ def plot_frontier(out: Path, summaries: Sequence[CellSummary]) -> list[Path]:
     return paths
 
 
-def write_frontier(out: Path, summaries: Sequence[CellSummary], run: Any) -> list[Path]:
+def write_frontier(out: Path, summaries: Sequence[CellSummary], run: "RunRecord") -> list[Path]:
     """``frontier.md`` and the pictures when the run has frontier or control rows; else nothing."""
     if not any(s.experiment in ("frontier", "controls") for s in summaries):
         return []
-    text = ["# Risk frontier and controls", "", f"Command: `{run.command}`", "",
+    text = ["# Risk frontier and controls", "", f"Command: `{run.command}`", "", f"Code: {run.code}", "",
             "Per-step plans, training-features baseline, from the same posterior samples as the main planners. "
             "`cvar1` is the posterior mean (risk-neutral IRD), `min` the paper's worst case; `prior` plans on the "
             "prior alone (beta = 0); `novelty` is the literal proxy kept off cells unlike any training cell. "

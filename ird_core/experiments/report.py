@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from ird_core import style
+from ird_core.experiments.provenance import NOT_RECORDED
 from ird_core.experiments.summaries import RESULT_COLUMNS, CellSummary
 from ird_core.experiments.tables import cells_text, percent, write_csv, write_run_json
 from ird_core.experiments.trials import (
@@ -50,12 +51,14 @@ FIGURE4: tuple[tuple[str, str, str], ...] = tuple(
 
 @dataclasses.dataclass(frozen=True)
 class RunRecord:
-    """How a run was made, as the report states it: the command line, its wall time (s) and
-    settings (the trial settings plus ``trials``, ``seed``, ``workers``, ``scheduler``)."""
+    """How a run was made, as the report states it: the command line, its wall time (s),
+    settings (the trial settings plus ``trials``, ``seed``, ``workers``, ``scheduler``) and the
+    code that ran (``provenance.code_version`` read when the run started)."""
 
     command: str
     wall: float
     settings: Mapping[str, Any]
+    code: str = NOT_RECORDED
 
 
 def write_trials_csv(path: Path, results: Sequence[TrialResult]) -> None:
@@ -173,6 +176,8 @@ def write_markdown(path: Path, summaries: Sequence[CellSummary], run: RunRecord,
         "# Lavaland experiment results",
         "",
         f"Command: `{run.command}`",
+        "",
+        f"Code: {run.code}",
         "",
         f"Wall time: {run.wall:.1f} s ({settings['workers']} worker(s), "
         f"{settings['scheduler'] or 'local process pool'}).",
@@ -354,5 +359,5 @@ def write_report(out: Path, results: Sequence[TrialResult], summaries: Sequence[
     write_results_csv(out / "results.csv", summaries)
     write_markdown(out / "results.md", summaries, run, factorial_note(results, run.settings))
     figures = plot_figures(out, summaries)
-    write_run_json(out / "run.json", run.command, run.wall, run.settings, figures)
+    write_run_json(out / "run.json", run.command, run.wall, run.settings, figures, run.code)
     return figures

@@ -7,7 +7,10 @@ sizes, horizons, betas and seeds, as a markdown table and a csv.
 One row per (condition, size, horizon, beta, method): trials, the posterior's lava value
 relative to dirt (median over trials of its mean and of its spread over samples), the share of
 samples valuing lava below dirt (mean), how often the main IRD plan touches lava and parks on it,
-how often a lava cell is the map's best per-step-min cell, and the median inference time.
+how often a lava cell is the map's best per-step-min cell, the target's standing (median over
+trials of the target's posterior-mean reward above the median dirt cell, in dirt spreads, for
+IRD and for the proxy; how often the plan reaches a target; how often a target cell is the best
+safe cell for the per-step min) and the median inference time.
 The script pins BLAS to one thread per process before numpy loads (the pool uses every core).
 """
 
@@ -54,8 +57,9 @@ def summary_table(rows: Sequence[ScaleDiagnosis]) -> str:
         groups.setdefault((row.condition, row.size, row.horizon, row.beta, method), []).append(row)
     lines = ["| condition | map | T | beta | method | trials | lava - dirt: mean (median) | sd over samples "
              "(median) | samples valuing lava below dirt | IRD touches lava | parks on lava | a lava cell is "
-             "the best cell | inference s (median) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "the best cell | target signal: IRD / proxy (median, dirt sds) | IRD reaches the target | the target is "
+             "the best safe cell | inference s (median) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for (condition, size, horizon, beta, method), group in groups.items():
         def share(flags: list[bool]) -> str:
             return f"{100 * np.mean(flags):.0f}% ({sum(flags)}/{len(flags)})"
@@ -64,6 +68,8 @@ def summary_table(rows: Sequence[ScaleDiagnosis]) -> str:
             f"| {np.median([r.lava_value_mean for r in group]):+.2f} | {np.median([r.lava_value_sd for r in group]):.2f} "
             f"| {100 * np.mean([r.share_below for r in group]):.0f}% | {share([r.lava_steps > 0 for r in group])} "
             f"| {share([r.parked for r in group])} | {share([r.lava_margin > 0 for r in group])} "
+            f"| {np.median([r.target_signal for r in group]):.1f} / {np.median([r.proxy_target_signal for r in group]):.1f} "
+            f"| {share([r.reached_target for r in group])} | {share([r.target_margin > 0 for r in group])} "
             f"| {np.median([r.infer_seconds for r in group]):.1f} |")
     return "\n".join(lines)
 

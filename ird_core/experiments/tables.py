@@ -49,7 +49,8 @@ def cells_text(cells: Iterable[tuple[int, int]]) -> str:
 
 
 def write_run_json(path: Path, command: str, wall: float, settings: Mapping[str, object],
-                   figures: Sequence[Path]) -> None:
-    """``run.json``: the command, wall time, settings (as strings where not JSON) and figure names."""
+                   figures: Sequence[Path], code: str) -> None:
+    """``run.json``: the command, wall time, settings (as strings where not JSON), figure names
+    and the code that ran (:mod:`ird_core.experiments.provenance`)."""
     path.write_text(json.dumps({"command": command, "wall_seconds": wall, "settings": settings,
-                                "figures": [f.name for f in figures]}, indent=2, default=str))
+                                "figures": [f.name for f in figures], "code": code}, indent=2, default=str))
