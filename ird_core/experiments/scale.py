@@ -81,15 +81,21 @@ class ScaleDiagnosis:
 DIAGNOSIS_COLUMNS: tuple[str, ...] = tuple(ScaleDiagnosis.__dataclass_fields__)
 
 
+def _cells_of(labels: np.ndarray, terrain: int) -> np.ndarray:
+    """The ``(H, W)`` mask of the cells labelled ``terrain``; ``ValueError`` naming the terrain
+    when the map has none."""
+    mask = np.asarray(labels) == int(terrain)
+    if not mask.any():
+        raise ValueError(f"terrain: no cell of terrain {int(terrain)} on the map")
+    return mask
+
+
 def terrain_mean_features(features: np.ndarray, labels: np.ndarray, terrain: int) -> np.ndarray:
     """Mean feature vector of the cells labelled ``terrain``: ``(H, W, d), (H, W) -> (d,)``.
 
     Raises ``ValueError`` naming the terrain when the map has no such cell.
     """
-    mask = np.asarray(labels) == int(terrain)
-    if not mask.any():
-        raise ValueError(f"terrain: no cell of terrain {int(terrain)} on the map")
-    return np.asarray(features, dtype=np.float64)[mask].mean(axis=0)
+    return np.asarray(features, dtype=np.float64)[_cells_of(labels, terrain)].mean(axis=0)
 
 
 def lava_values(features: np.ndarray, labels: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -125,12 +131,8 @@ def target_signal(features: np.ndarray, labels: np.ndarray, weights: np.ndarray)
     """
     mean_weight = np.atleast_2d(np.asarray(weights, dtype=np.float64)).mean(axis=0)
     rewards = np.asarray(features, dtype=np.float64) @ mean_weight
-    labels = np.asarray(labels)
-    for terrain in (Terrain.TARGET, Terrain.DIRT):
-        if not (labels == int(terrain)).any():
-            raise ValueError(f"terrain: no cell of terrain {int(terrain)} on the map")
-    dirt = rewards[labels == Terrain.DIRT]
-    gap = float(rewards[labels == Terrain.TARGET].mean() - np.median(dirt))
+    target, dirt = rewards[_cells_of(labels, Terrain.TARGET)], rewards[_cells_of(labels, Terrain.DIRT)]
+    gap = float(target.mean() - np.median(dirt))
     spread = float(dirt.std())
     rounding = _SAME_REWARD * max(float(np.abs(dirt).max()), abs(gap))  # identical cells differ by rounding
     if spread > rounding:
