@@ -65,6 +65,27 @@ def test_launch_graph_refuses_bad_mission_options(argv: list[str], message: str,
     assert info.value.code == 2 and message in capsys.readouterr().err
 
 
+def test_launch_graph_hypothesis_options_reach_the_world_node_only() -> None:
+    parser = launch_graph.build_parser()
+    assert launch_graph._node_table(parser.parse_args([])) is None  # the params file's space
+    specs = launch_graph._node_table(parser.parse_args(["--hypothesis", "rff", "--rff-features", "40",
+                                                        "--novelty-feature"]))
+    by_name = {s.name: s for s in specs}
+    assert by_name["world"].ros_args[-8:] == ("-p", "hypothesis:=rff", "-p", "rff_features:=40",
+                                              "-p", "novelty_feature:=true", "-p", "novelty_value:=feature_scale")
+    assert all("hypothesis:=rff" not in s.ros_args for name, s in by_name.items() if name != "world")
+    only_novel = {s.name: s for s in launch_graph._node_table(parser.parse_args(["--novelty-feature"]))}["world"]
+    assert "hypothesis:=linear" in only_novel.ros_args and "novelty_feature:=true" in only_novel.ros_args
+
+
+def test_launch_graph_refuses_a_bad_rff_count(capsys: pytest.CaptureFixture[str]) -> None:
+    assert launch_graph.main(["--hypothesis", "rff", "--rff-features", "0"]) == 2
+    assert "--rff-features: rff_features" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        launch_graph.main(["--hypothesis", "quadratic"])
+    assert info.value.code == 2 and "--hypothesis" in capsys.readouterr().err
+
+
 def test_launch_graph_mission_takes_an_optional_count() -> None:
     parser = launch_graph.build_parser()
     assert parser.parse_args([]).mission is None

@@ -139,7 +139,7 @@ def test_core_imports_no_ros() -> None:
     assert _offenders("ird_core", ("ird_ros", "rclpy", "ird_msgs", "rosbags")) == []
 
 
-@pytest.mark.parametrize("layer", ["posterior", "planning", "designer", "experiments", "mcmc"])
+@pytest.mark.parametrize("layer", ["posterior", "planning", "hypothesis", "designer", "experiments", "mcmc"])
 def test_worlds_import_no_algorithm(layer: str) -> None:
     assert _offenders("ird_core/worlds", (f"ird_core.{layer}",)) == []
 
@@ -158,3 +158,10 @@ def test_modules_are_short_or_say_why() -> None:
             if text.count("\n") > MAX_LINES and "Longer than 450 lines:" not in (ast.get_docstring(ast.parse(text)) or ""):
                 long.append(f"{path.relative_to(ROOT)} ({text.count(chr(10))} lines)")
     assert long == []
+
+
+@pytest.mark.parametrize("layer", ["designer", "experiments"])
+def test_hypothesis_spaces_import_no_experiment(layer: str) -> None:
+    """The world node builds its hypothesis space from ``ird_core.hypothesis``: it must not pull
+    in the experiments (or the designer) to do so."""
+    assert _offenders("ird_core/hypothesis", (f"ird_core.{layer}",)) == []

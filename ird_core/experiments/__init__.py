@@ -8,8 +8,8 @@ markdown and figures), ``tables`` (how reports write numbers), ``parallel`` (pro
 Dask map), ``progress`` (tqdm bars, imported only when drawn), ``cli`` / ``active_cli`` / ``scale_cli`` (the
 command lines, ``main(argv) -> int``), ``posterior_terrain`` (the posterior's spread per terrain),
 ``scale`` (where IRD goes wrong on robot-sized maps), ``scale_timing`` (what a converged
-posterior and a plan cost at a map size), ``novelty_hypothesis`` (the *novel* hypothesis
-feature, zero in training), ``provenance`` (which code produced a result).
+posterior and a plan cost at a map size), ``provenance`` (which code produced a result). The
+hypothesis spaces they compare live in :mod:`ird_core.hypothesis`.
 """
 
 from __future__ import annotations

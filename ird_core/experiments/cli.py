@@ -77,9 +77,8 @@ from typing import Any
 
 from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.chunks import load_chunks
-from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES
-from ird_core.experiments.novelty_hypothesis import NOVELTY_VALUES
 from ird_core.experiments.provenance import code_version
+from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES
 from ird_core.experiments.summaries import aggregate
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
@@ -142,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "Sample-Z without its own term")
     p.add_argument("--novelty-feature", action=argparse.BooleanOptionalAction, default=None,
                    help="add the hypothesis feature 'novel' (nonzero on test cells unlike every training cell, 0 in "
-                        "training; ird_core.experiments.novelty_hypothesis) to IRD's posterior and plans")
+                        "training; ird_core.hypothesis.novelty) to IRD's posterior and plans")
     p.add_argument("--novelty-value", choices=NOVELTY_VALUES, default=None,
                    help="the novel feature's value on novel cells: the training cells' rms feature norm "
                         "(feature_scale, the default: a novel cell gets the calibrated prior's reward spread) "
@@ -150,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hypothesis", choices=HYPOTHESES, default=None,
                    help="IRD's hypothesis space in the latent conditions: linear in the observations (the paper's, "
                         "default) or rff, random Fourier features of an RBF kernel on them "
-                        "(ird_core.experiments.kernel_hypothesis)")
+                        "(ird_core.hypothesis.rff)")
     p.add_argument("--rff-features", type=int, default=None, metavar="D",
                    help=f"random features of --hypothesis rff (default {DEFAULT_RFF_FEATURES})")
     p.add_argument("--quick", action="store_true",

@@ -59,7 +59,7 @@ class ScaleDiagnosis:
     horizon: int
     beta: float
     method: str
-    novelty_feature: bool  # the hypothesis features include "novel" (experiments.novelty_hypothesis)
+    novelty_feature: bool  # the hypothesis features include "novel" (ird_core.hypothesis.novelty)
     lava_value_mean: float  # mean over samples of w . (m_lava - m_dirt)
     lava_value_sd: float  # its standard deviation over samples
     lava_value_min: float  # its minimum over samples

@@ -82,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", choices=Z_METHODS, default=["maxent_z"])
     parser.add_argument("--betas", type=float, nargs="+", default=[TrialSpec.beta])
     parser.add_argument("--novelty-feature", action="store_true",
-                        help="add the hypothesis feature 'novel' (ird_core.experiments.novelty_hypothesis)")
+                        help="add the hypothesis feature 'novel' (ird_core.hypothesis.novelty)")
     parser.add_argument("--seeds", type=int, default=6, help="trials per cell: seeds SEED .. SEED + N - 1")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None, help="write the rows as csv here")

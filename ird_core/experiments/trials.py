@@ -63,9 +63,8 @@ import numpy as np
 
 from ird_core import mcmc, mdp, planning, posterior
 from ird_core.experiments.controls import control_results, frontier_results
-from ird_core.experiments.kernel_hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, hypothesis_instance
-from ird_core.experiments.novelty_hypothesis import NOVELTY_VALUES, with_novelty_feature
 from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
+from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES, HypothesisSpace
 from ird_core.planning.risk_measures import check_risk
 from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
 from ird_core.vocabulary import PROXY_COUNTS, Baseline, PlanMode, ZMethod
@@ -238,9 +237,9 @@ class TrialSpec:
     frontier: bool = False  # plan every risk level of FRONTIER_RISKS from every posterior
     controls: bool = False  # the control planners and posteriors (ird_core.experiments.controls)
     sample_scale: str = "training_spread"  # the IRD plans' samples: "training_spread" (planning.sample_scale) or "none"
-    novelty_feature: bool = False  # IRD's hypothesis features gain "novel" (experiments.novelty_hypothesis)
+    novelty_feature: bool = False  # IRD's hypothesis features gain "novel" (ird_core.hypothesis.novelty)
     novelty_value: str = "feature_scale"  # its value on novel cells: one of NOVELTY_VALUES
-    hypothesis: str = "linear"  # latent conditions: "rff" = random Fourier features (experiments.kernel_hypothesis)
+    hypothesis: str = "linear"  # latent conditions: "rff" = random Fourier features (ird_core.hypothesis.rff)
     rff_features: int = DEFAULT_RFF_FEATURES  # D of the "rff" hypothesis space
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
         4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
@@ -275,6 +274,10 @@ class TrialSpec:
         limit = self.traj_work_limit
         if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
             raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
+
+    def hypothesis_space(self) -> HypothesisSpace:
+        """IRD's hypothesis space of this spec (``hypothesis``, ``rff_features``, ``novelty_*``)."""
+        return HypothesisSpace(self.hypothesis, self.rff_features, self.novelty_feature, self.novelty_value)
 
     def observation_model(self, counts: str = "", own_term: bool = True) -> posterior.ObservationModel:
         """The posteriors' observation model (``counts`` overrides the spec's)."""
@@ -357,8 +360,7 @@ def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
     else:
         inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
                                       obs_dim=spec.obs_dim)
-    inst = hypothesis_instance(inst, spec.hypothesis, spec.rff_features)
-    return with_novelty_feature(inst, spec.novelty_value) if spec.novelty_feature else inst
+    return spec.hypothesis_space().apply(inst)
 
 
 def run_trial(spec: TrialSpec) -> list[TrialResult]:

@@ -33,6 +33,11 @@ services would apply later (sizes, horizons, yaw; ``ird_core.worlds.world_file``
 reported (file, key, value) with exit status 2 before any node starts, and what loads but looks
 wrong (a start on a terrain no training world shows) is printed as a ``[launcher] warning:`` line.
 
+--hypothesis rff, --rff-features D, --novelty-feature: IRD's hypothesis space (default: the
+params file's, the paper's linear space): the world node then also publishes
+/world/hypothesis/{train,test}_features and poses /ird/infer in that space
+(``ird_core.hypothesis``; docs/spec.md section 6).
+
 --mission [N] (N = 1 without a number): once the graph is ready, a client sends Rob navigation
 goals through the navigator's action /ird/navigate: for each seed 0..N-1 it generates that seed's
 world (/world/generate; with --world the file's world stays and the seed seeds the sampler), then
@@ -63,12 +68,13 @@ import threading
 import time
 from pathlib import Path
 
+from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, HypothesisSpace
 from ird_core.worlds.world_file import load_world_file
 from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec, names
 from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
 from ird_ros.launch.plan import with_viz_port
-from ird_ros.nodes.world import with_world_file
+from ird_ros.nodes.world import with_hypothesis, with_world_file
 
 __all__ = ["main", "build_parser"]
 
@@ -109,6 +115,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--nodes", type=_csv, default=None, help=f"comma-separated (default: {','.join(DEFAULT_NODES)})")
     parser.add_argument("--world", type=Path, default=None, metavar="FILE",
                         help="world file (YAML) the world node publishes instead of generating Lavaland")
+    parser.add_argument("--hypothesis", choices=HYPOTHESES, default=None,
+                        help="IRD's hypothesis space (default: the params file's, linear)")
+    parser.add_argument("--rff-features", type=int, default=None, metavar="D",
+                        help=f"random Fourier features of --hypothesis rff (default {DEFAULT_RFF_FEATURES})")
+    parser.add_argument("--novelty-feature", action="store_true",
+                        help="add the hypothesis feature 'novel' (zero in training)")
     parser.add_argument("--params", type=Path, default=None, help="ROS params file (default: msgs_config/params/graph.yaml)")
     parser.add_argument("--record", type=Path, default=None, metavar="DIR", help="record a bag (MCAP) into this new folder")
     parser.add_argument("--record-topics", type=_csv, default=None, help="topics to record (default: params file, else all)")
@@ -198,6 +210,13 @@ def _node_table(args: argparse.Namespace) -> list[NodeSpec] | None:
         specs = list(getattr(importlib.import_module(module), attr or "SPECS"))
     if args.viz_port is not None:
         specs = with_viz_port(specs, args.viz_port)
+    if args.hypothesis is not None or args.rff_features is not None or args.novelty_feature:
+        try:
+            space = HypothesisSpace(args.hypothesis or "linear", DEFAULT_RFF_FEATURES if args.rff_features is None
+                                    else args.rff_features, args.novelty_feature)
+        except ValueError as exc:
+            raise ValueError(f"--rff-features: {exc}") from None  # the one field argparse leaves unchecked
+        specs = with_hypothesis(specs if specs is not None else NODES, space)
     if args.world is None:
         return specs
     try:

@@ -33,7 +33,7 @@ from ird_ros.graph import names
 __all__ = ["extract_missions", "extract_query_rounds", "analyze"]
 
 #: Feature maps the posterior plot reads the terrains' mean features from, in order of preference.
-_POSTERIOR_MAPS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+_POSTERIOR_MAPS = (names.TOPIC_HYPOTHESIS_TEST_FEATURES, names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
 
 
 def extract_missions(bag: str | Path, messages: dict[str, list[BagMessage]] | None = None) -> list[Mission]:

@@ -43,6 +43,8 @@ __all__ = [
     "TOPIC_TRAIN_FEATURES",
     "TOPIC_TEST_FEATURES",
     "TOPIC_TRAIN_PROXY_FEATURES",
+    "TOPIC_HYPOTHESIS_TRAIN_FEATURES",
+    "TOPIC_HYPOTHESIS_TEST_FEATURES",
     "TOPIC_TERRAIN",
     "TOPIC_PROXY",
     "TOPIC_INFER_REQUEST",
@@ -100,6 +102,9 @@ LAUNCHER_NODES = (NODE_LAUNCHER, NODE_LAUNCHER_PING, NODE_LAUNCHER_VIEW, NODE_LA
 TOPIC_TRAIN_FEATURES = "/world/train_features"
 TOPIC_TEST_FEATURES = "/world/test_features"
 TOPIC_TRAIN_PROXY_FEATURES = "/world/train_proxy_features"
+# IRD's hypothesis space when the world node's differs from the sensors' (ird_ros.nodes.world)
+TOPIC_HYPOTHESIS_TRAIN_FEATURES = "/world/hypothesis/train_features"
+TOPIC_HYPOTHESIS_TEST_FEATURES = "/world/hypothesis/test_features"
 TOPIC_TERRAIN = "/world/terrain"
 TOPIC_PROXY = "/world/proxy"
 # The whole /ird/infer request the world poses (every training world; see ird_ros.nodes.world)
@@ -141,6 +146,8 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_TRAIN_FEATURES: "ird_msgs/msg/FeatureGrid",
     TOPIC_TEST_FEATURES: "ird_msgs/msg/FeatureGrid",
     TOPIC_TRAIN_PROXY_FEATURES: "ird_msgs/msg/FeatureGrid",
+    TOPIC_HYPOTHESIS_TRAIN_FEATURES: "ird_msgs/msg/FeatureGrid",
+    TOPIC_HYPOTHESIS_TEST_FEATURES: "ird_msgs/msg/FeatureGrid",
     TOPIC_TERRAIN: "ird_msgs/msg/TerrainGrid",
     TOPIC_PROXY: "ird_msgs/msg/ProxyReward",
     TOPIC_INFER_REQUEST: "ird_msgs/srv/InferReward_Request",

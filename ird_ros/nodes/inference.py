@@ -120,8 +120,9 @@ from ird_ros.stamps import stamp_key
 
 __all__ = ["InferenceNode", "PARAMETERS", "main"]
 
-TEST_MAP_TOPICS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
-"""Where /ird/query's default map is looked up, in order: the hypothesis space first."""
+TEST_MAP_TOPICS = (names.TOPIC_HYPOTHESIS_TEST_FEATURES, names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+"""Where /ird/query's default map is looked up, in order: the hypothesis space first (its own topic
+when the world's hypothesis space is not the sensors', else the sensors' map)."""
 
 MAP_WAIT = 10.0  # seconds /ird/query waits for the latched test map it defaults to (discovery lags)
 

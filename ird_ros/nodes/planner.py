@@ -2,27 +2,31 @@
 
 Run: ``python -m ird_ros.nodes.planner --ros-args --params-file msgs_config/params/graph.yaml``
 
-Keeps the latest (latched) ``/world/test_features``, ``/terrain/features``,
-``/world/train_features``, ``/world/train_proxy_features``, ``/world/proxy`` and
-``/ird/posterior``.
+Keeps the latest (latched) ``/world/hypothesis/test_features``, ``/world/test_features``,
+``/terrain/features``, ``/world/hypothesis/train_features``, ``/world/train_features``,
+``/world/train_proxy_features``, ``/world/proxy`` and ``/ird/posterior`` (the two
+``/world/hypothesis/...`` maps come only from a world whose hypothesis space is not the sensors':
+``ird_ros.nodes.world``).
 
 ``/ird/plan`` (PlanPath) fills in what a request leaves empty:
 
 - ``weights`` empty: the latest posterior's samples; for mode ``literal`` the latest proxy's
   weights. Their feature names are the posterior's ``feature_names`` / the proxy's.
 - ``map`` empty: the latest perceived test map whose layer names equal those feature names,
-  looked up in ``/world/test_features`` (the hypothesis space: posterior samples) and then
-  ``/terrain/features`` (the proxy's space: the classifier proxy's literal plan). With explicit
+  looked up in ``/world/hypothesis/test_features`` and ``/world/test_features`` (the hypothesis
+  space: posterior samples) and then ``/terrain/features`` (the proxy's space: the classifier
+  proxy's literal plan). With explicit
   ``weights`` and no map, the first of those two maps whose layer count fits the weights (K*d
   values, d = its layer count; K = 1 for literal) is used.
 - ``reference_features`` empty (needed by baseline ``training_features`` only): computed in the
   worker (:mod:`ird_ros.jobs.planning`): the proxy is planned (MaxEnt) on the training map in the
   proxy's own features (``/world/train_proxy_features``, start and horizon from ``/world/proxy``),
   and its expected visits are contracted with the training map whose layers match the weights
-  (``/world/train_features`` for posterior samples, ``/world/train_proxy_features`` for the
-  proxy's own weights).
+  (``/world/hypothesis/train_features`` or ``/world/train_features`` for posterior samples,
+  ``/world/train_proxy_features`` for the proxy's own weights).
 - ``sample_scale`` (default ``training_spread``): IRD plans divide each sample by its reward range
-  over ``/world/train_features`` (``ird_core.planning.sample_scale``); without that map they are
+  over the training map with their layers (``/world/hypothesis/train_features`` or
+  ``/world/train_features``; ``ird_core.planning.sample_scale``); without that map they are
   planned unscaled and the message says so (``sample_scale=none (...)``).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
@@ -102,8 +106,13 @@ from ird_ros.stamps import stamp_text
 
 __all__ = ["PlannerNode", "PARAMETERS", "main"]
 
-TEST_MAP_TOPICS = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
-"""The perceived test maps, in the order defaults are looked up: the hypothesis space first."""
+TEST_MAP_TOPICS = (names.TOPIC_HYPOTHESIS_TEST_FEATURES, names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+"""The perceived test maps, in the order defaults are looked up: the hypothesis space first (its own
+topic when the world's hypothesis space is not the sensors', then the sensors' map), then the
+proxy's space."""
+
+TRAIN_MAP_TOPICS = (names.TOPIC_HYPOTHESIS_TRAIN_FEATURES, names.TOPIC_TRAIN_FEATURES)
+"""The training maps posterior samples are scaled on and counted in, in the same order."""
 
 PARAMETERS: dict[str, Param] = {
     "replan_on_posterior": Param(False, "Plan (default_mode, default_baseline, proxy's test start/horizon) on "
@@ -199,7 +208,7 @@ class PlannerNode(ManagedNode):
         self.proxy: ProxyReward | None = None
         self.posterior: conv.PosteriorData | None = None
         self._risk_key: Any = None
-        for topic in (*TEST_MAP_TOPICS, names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES):
+        for topic in (*TEST_MAP_TOPICS, *TRAIN_MAP_TOPICS, names.TOPIC_TRAIN_PROXY_FEATURES):
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
@@ -374,9 +383,9 @@ class PlannerNode(ManagedNode):
         ``sources`` then says why)."""
         if self.sample_scale == "none":
             return None
-        found = conv.first_with_layers(self.maps, (names.TOPIC_TRAIN_FEATURES,), feature_names)
+        found = conv.first_with_layers(self.maps, TRAIN_MAP_TOPICS, feature_names)
         if found is None:
-            sources.append("sample_scale=none (no training map with the weights' layers on /world/train_features)")
+            sources.append(f"sample_scale=none (no training map with the weights' layers on {' or '.join(TRAIN_MAP_TOPICS)})")
             return None
         sources.append(f"sample_scale=training_spread@{found[0]}@{self._stamps[found[0]]}")
         return found[1].features.astype(np.float64)
@@ -394,7 +403,7 @@ class PlannerNode(ManagedNode):
         if proxy_train is None:
             raise ValueError("reference_features: empty, and no training map with the proxy's layers "
                              "was received on /world/train_proxy_features or /world/train_features")
-        target = conv.first_with_layers(self.maps, (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TRAIN_PROXY_FEATURES),
+        target = conv.first_with_layers(self.maps, (*TRAIN_MAP_TOPICS, names.TOPIC_TRAIN_PROXY_FEATURES),
                                         feature_names)
         if target is None:
             raise ValueError("reference_features: empty, and no training map has the layers of the weights")

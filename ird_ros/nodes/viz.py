@@ -73,7 +73,7 @@ PARAMETERS: dict[str, Param] = {
                              "without Origin (desktop apps, scripts) is allowed"),
 }
 
-FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
+FEATURE_TOPICS: tuple[str, ...] = (names.TOPIC_HYPOTHESIS_TEST_FEATURES, names.TOPIC_TEST_FEATURES, names.TOPIC_TERRAIN_FEATURES)
 """Where the posterior's features are looked up (the first map with its layers), for the reward per terrain."""
 
 _PENDING = 16  # unmatched /plan or /ird/plan_info messages kept

@@ -6,8 +6,8 @@ Run: ``python -m ird_ros.nodes.world --ros-args --params-file msgs_config/params
 Publishes (reliable, transient local, depth 1; all messages of one generation carry the same
 header stamp, so subscribers can pair them):
 
-- ``/world/train_features`` (FeatureGrid): the training map in the IRD hypothesis space
-  (``instance.train_features``, layers ``instance.feature_names``).
+- ``/world/train_features`` (FeatureGrid): what the sensors report on the training map
+  (``instance.train_features``, layers ``instance.feature_names``): the paper's hypothesis space.
 - ``/world/test_features`` (FeatureGrid): what Rob's sensors report on the test map: the
   indicators (side_effects), the two sensors' indicators (reward_hacking, lava reads as grass /
   target) or the raw observations (latent conditions).
@@ -25,6 +25,23 @@ header stamp, so subscribers can pair them):
 - ``/world/proxy`` (ProxyReward): condition, seed, the proxy's feature names and weights, the
   training start/horizon, the test (deployment) start/horizon, and the true terrain rewards.
   Published last: a received proxy means the whole generation is out.
+
+IRD's hypothesis space (parameters ``hypothesis``, ``rff_features``, ``novelty_feature``,
+``novelty_value``: an ``ird_core.hypothesis.HypothesisSpace``, set at configure). The default is
+the paper's: the sensors' features, and the topics above are all there is. Any other space
+(random Fourier features of the latent observations, the *novel* feature) is applied to each
+world by ``HypothesisSpace.apply``, exactly as the experiments apply it (``TrialSpec.hypothesis``,
+``--novelty-feature``), and the world then also publishes, with the same stamp, before the proxy:
+
+- ``/world/hypothesis/train_features`` and ``/world/hypothesis/test_features`` (FeatureGrid): the
+  training and the test map in that space (layers ``rff_000``, ... and/or ``novel``). The
+  planner, the inference node's queries, the live view and the bag analysis look a posterior's
+  map up here first.
+- ``/world/infer_request`` then carries the training maps in that space, with ``proxy_map`` the
+  proxy's own features (the sensors' observations in latent_raw): the posterior lives in the
+  hypothesis space while the proxy's behaviour is planned on its own features.
+
+The sensors' topics, ``/world/proxy`` and so perception and the literal plan are unchanged.
 
 World files (parameter ``world_file``, "" = generate Lavaland): the node loads the file with
 ``ird_core.worlds.world_file.load_world_file`` at start-up (a bad file stops the node before it serves,
@@ -53,6 +70,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES, HypothesisSpace
 from ird_core.vocabulary import Condition, parse
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.observations import DEFAULT_DIM
@@ -65,7 +83,8 @@ from ird_ros.runtime.lifecycle import ManagedNode
 from ird_ros.runtime.node_params import Param
 from ird_ros.runtime.offload import service_qos
 
-__all__ = ["WorldNode", "PARAMETERS", "TOPIC_INFER_REQUEST", "infer_request", "with_world_file", "main"]
+__all__ = ["WorldNode", "PARAMETERS", "TOPIC_INFER_REQUEST", "infer_request", "with_world_file", "with_hypothesis",
+           "main"]
 
 TOPIC_INFER_REQUEST = names.TOPIC_INFER_REQUEST
 
@@ -83,6 +102,14 @@ PARAMETERS: dict[str, Param] = {
     "resolution": Param(1.0, "Map resolution in metres per cell", min_value=1e-6, max_value=1e6),
     "world_file": Param("", "World file (YAML) published at start-up instead of a generated Lavaland; "
                             "\"\" = generate"),
+    "hypothesis": Param("linear", "IRD's hypothesis space: linear (the sensors' features, the paper's) or rff "
+                                  "(random Fourier features of the latent observations); not linear: also "
+                                  "/world/hypothesis/*", choices=HYPOTHESES),
+    "rff_features": Param(DEFAULT_RFF_FEATURES, "Random Fourier features D of hypothesis rff", min_value=1,
+                          max_value=10000),
+    "novelty_feature": Param(False, "Append the hypothesis feature 'novel' (zero in training; on test cells "
+                                    "unlike every training cell, the training features' scale)"),
+    "novelty_value": Param("feature_scale", "The novel feature's value on novel cells", choices=NOVELTY_VALUES),
 }
 
 
@@ -119,6 +146,17 @@ def with_world_file(specs: Sequence[Any], path: str | Path) -> list[Any]:
             if s.name in (names.NODE_WORLD, names.NODE_PERCEPTION) else s for s in specs]
 
 
+def with_hypothesis(specs: Sequence[Any], space: HypothesisSpace) -> list[Any]:
+    """Node specs whose world node publishes in the hypothesis space ``space``: its four
+    parameters as ``-p`` arguments after the params file (the launcher's ``--hypothesis``,
+    ``--rff-features``, ``--novelty-feature``)."""
+    values = (("hypothesis", space.kind), ("rff_features", space.rff_features),
+              ("novelty_feature", str(space.novelty_feature).lower()), ("novelty_value", space.novelty_value))
+    args = tuple(arg for name, value in values for arg in ("-p", f"{name}:={value}"))
+    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + args) if s.name == names.NODE_WORLD else s
+            for s in specs]
+
+
 class WorldNode(ManagedNode):
     """The world (managed: its first world is made at configure and published at activate)."""
 
@@ -131,6 +169,8 @@ class WorldNode(ManagedNode):
         self.condition, self.seed = p["condition"], p["seed"]
         self.height, self.width, self.horizon = p["height"], p["width"], p["horizon"]
         self.obs_dim, self.resolution = p["obs_dim"], p["resolution"]
+        self.space = HypothesisSpace(p["hypothesis"], int(p["rff_features"]), bool(p["novelty_feature"]),
+                                     p["novelty_value"])
         self.world_file: world_file.WorldFile | None = None
         if p["world_file"]:
             self.world_file = world_file.load_world_file(p["world_file"])  # ValueError: file, key, value
@@ -143,6 +183,10 @@ class WorldNode(ManagedNode):
             names.TOPIC_TEST_FEATURES: self.create_publisher(FeatureGrid, names.TOPIC_TEST_FEATURES, qos),
             names.TOPIC_TRAIN_PROXY_FEATURES: self.create_publisher(
                 FeatureGrid, names.TOPIC_TRAIN_PROXY_FEATURES, qos),
+            names.TOPIC_HYPOTHESIS_TRAIN_FEATURES: self.create_publisher(
+                FeatureGrid, names.TOPIC_HYPOTHESIS_TRAIN_FEATURES, qos),
+            names.TOPIC_HYPOTHESIS_TEST_FEATURES: self.create_publisher(
+                FeatureGrid, names.TOPIC_HYPOTHESIS_TEST_FEATURES, qos),
             names.TOPIC_TERRAIN: self.create_publisher(TerrainGrid, names.TOPIC_TERRAIN, qos),
             TOPIC_INFER_REQUEST: self.create_publisher(InferReward.Request, TOPIC_INFER_REQUEST, qos),
             names.TOPIC_PROXY: self.create_publisher(ProxyReward, names.TOPIC_PROXY, qos),
@@ -174,7 +218,8 @@ class WorldNode(ManagedNode):
         else:
             self.generate(self.condition, self.seed)
             self.get_logger().info(
-                f"published {self.condition} seed {self.seed} {self.height}x{self.width} T={self.horizon}")
+                f"published {self.condition} seed {self.seed} {self.height}x{self.width} T={self.horizon}, "
+                f"hypothesis space {self.space.describe()}")
 
     # ------------------------------------------------------------------ generation
 
@@ -197,9 +242,18 @@ class WorldNode(ManagedNode):
         return self.instance
 
     def _publish(self, inst: lavaland.LavalandInstance, resolution: float, origin: tuple[float, ...]) -> None:
+        """Publish ``inst`` (the sensors' world) and, in a hypothesis space other than the
+        sensors', its maps in that space; the /ird/infer request is always the hypothesis space's."""
         stamp = conv.now_stamp(self)
         geometry = dict(resolution=resolution, origin=origin, stamp=stamp)
         num_terrains = len(inst.terrain_names)
+        hyp = self.space.apply(inst)
+        in_space: list[tuple[str, Any]] = [] if self.space.is_linear else [
+            (names.TOPIC_HYPOTHESIS_TRAIN_FEATURES,
+             conv.feature_grid_to_msg(hyp.train_features, hyp.feature_names, **geometry)),
+            (names.TOPIC_HYPOTHESIS_TEST_FEATURES,
+             conv.feature_grid_to_msg(hyp.test_features, hyp.feature_names, **geometry)),
+        ]
         msgs: list[tuple[str, Any]] = [
             (names.TOPIC_TRAIN_FEATURES, conv.feature_grid_to_msg(inst.train_features, inst.feature_names, **geometry)),
             (names.TOPIC_TEST_FEATURES, conv.feature_grid_to_msg(inst.test_features, inst.feature_names, **geometry)),
@@ -209,7 +263,8 @@ class WorldNode(ManagedNode):
                 inst.test_labels, inst.terrain_names,
                 probabilities=(inst.test_labels[..., None] == np.arange(num_terrains)).astype(np.float32),
                 **geometry)),
-            (TOPIC_INFER_REQUEST, infer_request(inst, **geometry)),
+            *in_space,
+            (TOPIC_INFER_REQUEST, infer_request(hyp, **geometry)),
             (names.TOPIC_PROXY, self._proxy_msg(inst, stamp)),
         ]
         for topic, msg in msgs:  # the proxy last: it marks a complete generation
@@ -249,7 +304,9 @@ class WorldNode(ManagedNode):
             return response
         from rclpy.parameter import Parameter
 
-        self.set_parameters([
+        # Atomically: set one at a time, the first would be a (condition, seed) pair this node
+        # has not published, and apply_parameters would generate and publish that world.
+        self.set_parameters_atomically([
             Parameter("condition", Parameter.Type.STRING, inst.condition),
             Parameter("seed", Parameter.Type.INTEGER, int(inst.seed)),
         ])

@@ -153,6 +153,19 @@ def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
     assert (values[0].string_value, values[1].integer_value) == ("latent_raw", 2)
 
 
+def test_generate_publishes_one_generation(probe: Probe) -> None:
+    """/world/generate that changes condition and seed publishes that world once: setting the
+    parameters to it afterwards must not publish the half-changed pair in between."""
+    assert probe.generate("latent_raw", 1).ok
+    probe.messages("latent_raw", 1)
+    mark = probe.mark()
+    assert probe.generate("reward_hacking", 5).ok
+    assert probe.generate("side_effects", 7).ok
+    probe.messages("side_effects", 7, since=mark)  # one publisher, in order: everything before is in
+    got = [(p.condition, p.seed) for p in probe.received[names.TOPIC_PROXY][mark:]]
+    assert got == [("reward_hacking", 5), ("side_effects", 7)]
+
+
 def test_bad_condition_is_rejected(probe: Probe, ros_node: Any, world: NodeProcess) -> None:
     ok = probe.generate("reward_hacking", 5)
     assert ok.ok, ok.message

@@ -1,4 +1,4 @@
-"""The *novel* hypothesis feature (ird_core.experiments.novelty_hypothesis): zero in training,
+"""The *novel* hypothesis feature (ird_core.hypothesis.novelty): zero in training,
 the novelty rule on the test map at the training cells' rms feature norm (so the calibrated prior
 gives a novel cell the reward spread 1 / temperature, and rescaled observations rescale it),
 invisible to the proxy's behaviour, so its weight keeps its prior; the literal plan does not
@@ -14,7 +14,7 @@ import pytest
 
 from ird_core import planning, posterior
 from ird_core.experiments import cli, trials
-from ird_core.experiments.novelty_hypothesis import NOVELTY_FEATURE, with_novelty_feature
+from ird_core.hypothesis.novelty import NOVELTY_FEATURE, with_novelty_feature
 from ird_core.planning.novelty import novel_cells
 from ird_core.posterior import CALIBRATED_TEMPERATURE, feature_scale
 from ird_core.worlds import lavaland

@@ -1,4 +1,4 @@
-"""The random-Fourier-feature hypothesis space (ird_core.experiments.kernel_hypothesis): its kernel
+"""The random-Fourier-feature hypothesis space (ird_core.hypothesis.rff): its kernel
 is the RBF kernel up to a Monte-Carlo error that shrinks with D, it is seeded, training and test
 cells go through the same map, the proxy and the literal plan are untouched, and a test cell far
 from every training observation keeps the prior's spread while a training-like cell's shrinks."""
@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ird_core import planning, posterior
-from ird_core.experiments import cli, kernel_hypothesis as kh, trials
+from ird_core.experiments import cli, trials
+from ird_core.hypothesis import rff as kh
 from ird_core.worlds import lavaland
 
 
