@@ -31,6 +31,7 @@ from typing import Any
 
 from ird_core.experiments import active, active_report, parallel
 from ird_core.experiments.chunks import load_chunks
+from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.experiments.report import RunRecord
 from ird_core.posterior import METHODS
@@ -91,13 +92,17 @@ def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], setting
     print(f"{len(specs)} trials ({args.trials} per condition x {len(args.conditions)} conditions), "
           f"{parallel.describe(args.workers, args.scheduler)}", file=sys.stderr)
     code = code_version()  # before any trial: the code that runs them
+    journal, resumed = open_journal(args.out, code, specs)
     t0 = time.monotonic()
-    per_trial = parallel.parallel_map(active.run_trial, specs, args.workers, args.scheduler)
+    per_trial = parallel.parallel_map(active.run_trial, specs, args.workers, args.scheduler, journal=journal)
     wall = time.monotonic() - t0
     results = [r for rs in per_trial for r in rs]
     summaries = active.aggregate(results)
     shown = dict(settings, trials=args.trials, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+    if resumed:
+        shown["resumed_trials"] = resumed
     active_report.write_report(args.out, results, summaries, args.conditions, RunRecord(command, wall, shown, code))
+    journal.close()
     print("\n".join(active_report.headline(results, summaries, args.conditions, settings["query_counts"],
                                            settings["strategies"])))
     print(f"wall time {wall:.1f} s; outputs in {args.out}")

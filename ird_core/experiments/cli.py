@@ -77,6 +77,7 @@ from typing import Any
 
 from ird_core.experiments import frontier_report, parallel, report
 from ird_core.experiments.chunks import load_chunks
+from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES
 from ird_core.experiments.summaries import aggregate
@@ -291,13 +292,16 @@ def run_experiment(args: argparse.Namespace, settings: dict[str, Any], condition
     where = parallel.describe(args.workers, args.scheduler)
     print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), {where}", file=sys.stderr)
     code = code_version()  # before any trial: the code that runs them
+    journal, resumed = open_journal(args.out, code, specs)
     t0 = time.monotonic()
-    results = _flatten(parallel.parallel_map(run_trial, specs, args.workers, args.scheduler))
+    results = _flatten(parallel.parallel_map(run_trial, specs, args.workers, args.scheduler, journal=journal))
     wall = time.monotonic() - t0
     summaries = aggregate(results)
-    run = report.RunRecord(command, wall, _shown_settings(args, settings, conditions, trials), code)
+    shown = _shown_settings(args, settings, conditions, trials)
+    run = report.RunRecord(command, wall, dict(shown, resumed_trials=resumed) if resumed else shown, code)
     report.write_report(args.out, results, summaries, run)
     frontier_report.write_frontier(args.out, summaries, run)
+    journal.close()
     print(report.markdown_table(summaries, "main"))
     print("\n".join(report.claim_check(summaries)))
     print(f"outputs in {args.out}")

@@ -19,6 +19,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Callable, Sequence, TypeVar
 
 from ird_core.experiments import progress as progress_bars
+from ird_core.experiments.journal import MISSING, Journal
 
 __all__ = ["BLAS_THREAD_VARIABLES", "TRIAL_FLAGS", "add_arguments", "add_trial_arguments", "describe", "progress_bar", "map_local",
            "map_dask", "parallel_map"]
@@ -58,26 +59,35 @@ def progress_bar(total: int, desc: str = "trials") -> Any:
     return progress_bars.progress_bar(total, desc, unit="trial")
 
 
-def map_local(fn: Callable[[T], R], items: Sequence[T], workers: int, progress: Any = None) -> list[R]:
-    """``[fn(x) for x in items]`` in a process pool of ``workers`` (in-process if <= 1)."""
+def map_local(fn: Callable[[T], R], items: Sequence[T], workers: int, progress: Any = None,
+              done: "Callable[[int, R], None] | None" = None) -> list[R]:
+    """``[fn(x) for x in items]`` in a process pool of ``workers`` (in-process if <= 1);
+    ``done(i, result)`` is called in this process as each item finishes."""
     out: list[Any] = [None] * len(items)
     if workers <= 1:
         for i, item in enumerate(items):
             out[i] = fn(item)
-            if progress is not None:
-                progress.update()
+            _finished(i, out[i], progress, done)
         return out
     with ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
         for fut in as_completed(futures):
             out[futures[fut]] = fut.result()
-            if progress is not None:
-                progress.update()
+            _finished(futures[fut], out[futures[fut]], progress, done)
     return out
 
 
-def map_dask(fn: Callable[[T], R], items: Sequence[T], client: Any, progress: Any = None) -> list[R]:
-    """``[fn(x) for x in items]`` on a Dask distributed client, in input order."""
+def _finished(i: int, result: Any, progress: Any, done: "Callable[[int, Any], None] | None") -> None:
+    if done is not None:
+        done(i, result)
+    if progress is not None:
+        progress.update()
+
+
+def map_dask(fn: Callable[[T], R], items: Sequence[T], client: Any, progress: Any = None,
+             done: "Callable[[int, R], None] | None" = None) -> list[R]:
+    """``[fn(x) for x in items]`` on a Dask distributed client, in input order (``done`` as in
+    :func:`map_local`)."""
     from distributed import as_completed as dask_completed
 
     futures = client.map(fn, list(items), pure=False)
@@ -85,18 +95,35 @@ def map_dask(fn: Callable[[T], R], items: Sequence[T], client: Any, progress: An
     out: list[Any] = [None] * len(items)
     for fut in dask_completed(futures):
         out[index[fut.key]] = fut.result()
-        if progress is not None:
-            progress.update()
+        _finished(index[fut.key], out[index[fut.key]], progress, done)
     return out
 
 
 def parallel_map(fn: Callable[[T], R], items: Sequence[T], workers: int = 1, scheduler: str | None = None,
-                 desc: str = "trials") -> list[R]:
-    """Map with a progress bar: on the Dask scheduler at ``scheduler`` if given, else locally."""
+                 desc: str = "trials", journal: "Journal | None" = None) -> list[R]:
+    """Map with a progress bar: on the Dask scheduler at ``scheduler`` if given, else locally.
+
+    With a ``journal`` (:class:`ird_core.experiments.journal.Journal`), items it holds are not run
+    again (their kept results are returned) and every other result is kept as it arrives, so an
+    interrupted run resumes where it stopped.
+    """
+    out: list[Any] = [MISSING if journal is None else journal.load(item) for item in items]
+    todo = [i for i, result in enumerate(out) if result is MISSING]
+    pending = [items[i] for i in todo]
+
+    def done(j: int, result: Any) -> None:
+        if journal is not None:
+            journal.record(pending[j], result)
+
     with progress_bar(len(items), desc) as progress:
+        progress.update(len(items) - len(todo))
         if scheduler:
             from distributed import Client
 
             with Client(scheduler) as client:
-                return map_dask(fn, items, client, progress)
-        return map_local(fn, items, workers, progress)
+                fresh = map_dask(fn, pending, client, progress, done)
+        else:
+            fresh = map_local(fn, pending, workers, progress, done)
+    for i, result in zip(todo, fresh):
+        out[i] = result
+    return out
