@@ -232,8 +232,10 @@ def test_person_answers_in_the_browser(graph: dict[str, Any], browser: webdriver
         buttons[0].click()
         probe.until(lambda: any(r.query_id == asked.query_id and r.chosen == 0 and r.answered_by == "web"
                                 and r.kind == "proxies" for r in probe.records), "the answered proxies record")
-        assert message_text(browser, "Thank you").startswith(f"Thank you: Option A recorded for question #{asked.query_id}")
+        # The page thanks the person once the answer's re-sample is done (the server's reply
+        # waits for it), so the posterior comes first: under load it takes longer than WAIT.
         probe.until(lambda: len(probe.posteriors) > seen, "the posterior after the proxies answer")
+        assert message_text(browser, "Thank you").startswith(f"Thank you: Option A recorded for question #{asked.query_id}")
 
         # The designer node stops: the page shows that the graph ended, not "reconnecting…".
         assert graph["procs"][-1].stop() == 0
