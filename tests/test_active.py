@@ -191,3 +191,43 @@ def test_the_chains_follow_the_weight_space_size_unless_the_spec_sets_them() -> 
     assert spec.chain_settings(50) == dict(warmup=100, max_leapfrog=64, warmup_max_leapfrog=32)
     explicit = ActiveSpec("latent_raw", 0, warmup=30, max_leapfrog=8)
     assert explicit.chain_settings(50) == dict(warmup=30, max_leapfrog=8, warmup_max_leapfrog=32)
+
+
+def test_the_converged_chains_are_the_main_experiments_recipe_for_the_method() -> None:
+    """``chains="converged"``: the cold posterior and every re-sample use the main experiment's
+    recipe for the spec's method and weight-space size (kernel, chains, run until converged),
+    re-samples with the warm warm-up; ``"fixed"`` keeps the small fixed-length chains."""
+    from ird_core.experiments.active import ActiveSpec
+    from ird_core.experiments.trials import TrialSpec
+
+    for method, dim in (("sample_z", 4), ("sample_z", 50), ("maxent_z", 50)):
+        spec = ActiveSpec("side_effects", 3, method=method, chains="converged", warm_warmup=25)
+        recipe = TrialSpec("side_effects", 3).sampler(method).for_dim(dim).options()
+        assert recipe["until_converged"] is not None
+        assert spec.sampler_options(dim, warm=False) == recipe
+        assert spec.sampler_options(dim, warm=True) == dict(recipe, warmup=25)
+    assert ActiveSpec("side_effects", 0, method="sample_z", chains="converged").sampler_options(4, False)["kernel"] \
+        == "independence_elliptical"
+    fixed = ActiveSpec("side_effects", 0, method="sample_z")
+    assert fixed.sampler_options(4, warm=False) == dict(num_chains=4, thin=4, max_leapfrog=16, warmup_max_leapfrog=None,
+                                                        warmup=50)
+    assert fixed.sampler_options(4, warm=True)["warmup"] is None  # the library's warm warm-up
+    with pytest.raises(ValueError, match="chains"):
+        ActiveSpec("side_effects", 0, chains="long")
+    with pytest.raises(ValueError, match="warmup, max_leapfrog"):
+        ActiveSpec("side_effects", 0, chains="converged", warmup=30)
+
+
+@pytest.mark.slow
+def test_a_converged_trial_runs_its_posteriors_until_they_converge() -> None:
+    """Sample-Z with the fixed-length MaxEnt-Z chains leaves this small trial's posteriors
+    unconverged; with its own recipe, run until converged, every one passes R-hat <= 1.1."""
+    small = dict(size=5, horizon=5, obs_dim=4, num_samples=16)
+    fixed = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", **small))
+    converged = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", chains="converged", **small))
+    def r_hats(results: list) -> list[float]:
+        return [r.r_hat_max for r in results if r.strategy not in ("literal", "oracle")]
+
+    assert min(r_hats(fixed)) > 1.1
+    assert r_hats(converged) and max(r_hats(converged)) <= 1.1
+    assert [(r.strategy, r.num_queries) for r in converged] == [(r.strategy, r.num_queries) for r in fixed]

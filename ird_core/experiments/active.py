@@ -60,6 +60,7 @@ __all__ = [
     "EXPERIMENT_STRATEGIES",
     "QUERY_COUNTS",
     "DEFAULT_DESIGNER_BETA",
+    "CHAINS",
     "ActiveSpec",
     "ActiveResult",
     "ActiveSummary",
@@ -76,6 +77,8 @@ QUERY_COUNTS: tuple[int, ...] = (0, 1, 2, 3, 5)
 DEFAULT_DESIGNER_BETA: float = 1.0
 #: The query chosen with the true reward (``queries.propose_oracle_query``): the headroom.
 ORACLE_QUERY: str = "oracle_query"
+#: ``ActiveSpec.chains``: the posteriors' chain recipes (:meth:`ActiveSpec.sampler_options`).
+CHAINS: tuple[str, ...] = ("fixed", "converged")
 #: The experiment's strategies: the library's, then the oracle query.
 EXPERIMENT_STRATEGIES: tuple[str, ...] = STRATEGIES + (ORACLE_QUERY,)
 
@@ -90,7 +93,8 @@ class ActiveSpec:
     T = 30, 50-d observations in the latent conditions, as in Figure 4); the sampler settings are
     the experiments' small fixed-length ones (:data:`ird_core.experiments.QUICK`: 64 samples,
     beta 50, 4 chains; warm-up and leapfrog cap per weight-space size, :meth:`chain_settings`), with
-    MaxEnt-Z (its gradient is cheap). The designer model is the
+    MaxEnt-Z (its gradient is cheap); ``chains="converged"`` runs the main experiment's recipe for
+    ``method`` instead (:meth:`sampler_options`). The designer model is the
     calibrated one (``temperature``; ``prior_sigma`` None: ``1 / (temperature * feature scale)``,
     ``ird_core.posterior.calibration``)."""
 
@@ -111,6 +115,9 @@ class ActiveSpec:
     # Warm-up of each re-sample after an answer; None: the library's ``DEFAULT_WARM_WARMUP`` (50
     # for MaxEnt-Z; shorter warm-ups leave more re-samples unconverged, docs/benchmarks.md).
     warm_warmup: "int | None" = None
+    # Chain recipe (:meth:`sampler_options`): "fixed", the experiments' small fixed-length MaxEnt-Z
+    # chains for either method; "converged", the main experiment's recipe for the spec's method.
+    chains: str = "fixed"
     query_counts: tuple[int, ...] = QUERY_COUNTS
     strategies: tuple[str, ...] = EXPERIMENT_STRATEGIES
     num_options: int = 2
@@ -133,7 +140,34 @@ class ActiveSpec:
                     max_leapfrog=recipe.max_leapfrog if self.max_leapfrog is None else self.max_leapfrog,
                     warmup_max_leapfrog=recipe.warmup_max_leapfrog or None)
 
+    def sampler_options(self, dim: int, warm: bool) -> dict:
+        """``posterior.sample_joint_posterior``'s sampler keywords for a posterior in ``dim``
+        dimensions: the cold one (``warm`` False) or a re-sample after an answer, warm-started
+        from the previous posterior (``warm`` True, warm-up ``warm_warmup``).
+
+        ``chains`` "fixed": ``num_chains`` HMC chains of ``thin * ceil(num_samples / num_chains)``
+        iterations with :meth:`chain_settings`'s warm-up and leapfrog caps, for both methods.
+        "converged": the main experiment's recipe for ``method`` at that size
+        (``TrialSpec.sampler(method).for_dim(dim)``: its kernel, chains and warm-up, run until
+        split R-hat <= 1.05 and bulk ESS >= num_samples / 2 or its iteration cap or give-up rule
+        stops it), for the cold posterior and every re-sample; ``num_chains``, ``thin``,
+        ``warmup`` and ``max_leapfrog`` are not used."""
+        if self.chains == "converged":
+            options = TrialSpec(self.condition, self.seed).sampler(self.method).for_dim(dim).options()
+            if warm:
+                options["warmup"] = self.warm_warmup
+            return options
+        chain = self.chain_settings(dim)
+        return dict(num_chains=self.num_chains, thin=self.thin, max_leapfrog=chain["max_leapfrog"],
+                    warmup_max_leapfrog=chain["warmup_max_leapfrog"],
+                    warmup=self.warm_warmup if warm else chain["warmup"])
+
     def __post_init__(self) -> None:
+        if self.chains not in CHAINS:
+            raise ValueError(f"chains: expected one of {CHAINS}, got {self.chains!r}")
+        if self.chains == "converged" and (self.warmup is not None or self.max_leapfrog is not None):
+            raise ValueError("warmup, max_leapfrog: the 'converged' chains use the main experiment's recipe; "
+                             "leave them unset (None)")
         if self.prior_sigma is not None and not (math.isfinite(self.prior_sigma) and self.prior_sigma > 0):
             raise ValueError(f"prior_sigma must be a finite number > 0 or None, got {self.prior_sigma!r}")
         if self.condition not in lavaland.ALL_CONDITIONS:
@@ -218,9 +252,6 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     proxy, = posterior.proxy_observations(inst, num_proxy, _seed(inst.seed, 2), spec.prior_sigma,
                                           observation_model=model)
     reference = proxy.proxy_features / (inst.train_horizon + 1)
-    chain = spec.chain_settings(proxy.dim)
-    options = dict(num_chains=spec.num_chains, thin=spec.thin, max_leapfrog=chain["max_leapfrog"],
-                   warmup_max_leapfrog=chain["warmup_max_leapfrog"])
 
     resampled: dict[tuple, posterior.Posterior] = {}
 
@@ -233,8 +264,8 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                 warnings.simplefilter("ignore", RuntimeWarning)  # R-hat is recorded per result instead
                 resampled[key] = posterior.sample_joint_posterior(
                     evidence, spec.beta, spec.method, spec.num_samples, _seed(inst.seed, 1, round_index),
-                    spec.prior_sigma, warmup=chain["warmup"] if initial is None else spec.warm_warmup,
-                    initial=initial, observation_model=model, **options)
+                    spec.prior_sigma, initial=initial, observation_model=model,
+                    **spec.sampler_options(proxy.dim, warm=initial is not None))
         return resampled[key]
 
     rob = PlanSettings(MAIN_BASELINE, reference)

@@ -67,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "--prior-sigma the prior follows it, sigma = 1 / (temperature * rms training feature norm)")
     p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
+    p.add_argument("--chains", default=d.chains, choices=active.CHAINS,
+                   help="fixed: the small fixed-length MaxEnt-Z chains (default); converged: the main experiment's "
+                        "recipe for --method, run until converged (the sampler flags are then not used)")
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rewrite the report in --out from its active_trials.csv and run.json")
     p.add_argument("--merge", nargs="+", type=Path, default=None, metavar="DIR",
@@ -81,6 +84,7 @@ def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
                 beta=args.beta, prior_sigma=args.prior_sigma, temperature=args.temperature, method=args.method,
                 num_chains=args.num_chains,
                 warmup=args.warmup, thin=args.thin, max_leapfrog=args.max_leapfrog, warm_warmup=args.warm_warmup,
+                chains=args.chains,
                 query_counts=tuple(sorted(set(args.query_counts))), strategies=tuple(args.strategies),
                 num_options=args.num_options, designer_beta=args.designer_beta, choice_beta=args.choice_beta)
 
