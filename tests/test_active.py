@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
+from typing import Iterable
 
 import pytest
 
@@ -220,14 +221,48 @@ def test_the_converged_chains_are_the_main_experiments_recipe_for_the_method() -
 
 @pytest.mark.slow
 def test_a_converged_trial_runs_its_posteriors_until_they_converge() -> None:
-    """Sample-Z with the fixed-length MaxEnt-Z chains leaves this small trial's posteriors
-    unconverged; with its own recipe, run until converged, every one passes R-hat <= 1.1."""
+    """Sample-Z with the fixed-length MaxEnt-Z chains leaves this small trial's cold posterior
+    and most re-samples unconverged; with its own recipe, run until converged, every one passes
+    R-hat <= 1.1."""
     small = dict(size=5, horizon=5, obs_dim=4, num_samples=16)
     fixed = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", **small))
     converged = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", chains="converged", **small))
-    def r_hats(results: list) -> list[float]:
+    def r_hats(results: "Iterable[active.ActiveResult]") -> list[float]:
         return [r.r_hat_max for r in results if r.strategy not in ("literal", "oracle")]
 
-    assert min(r_hats(fixed)) > 1.1
+    assert min(r_hats(r for r in fixed if r.num_queries == 0)) > 1.1  # the cold posterior
+    assert sum(r > 1.1 for r in r_hats(fixed)) > len(r_hats(fixed)) // 2  # and most re-samples
     assert r_hats(converged) and max(r_hats(converged)) <= 1.1
     assert [(r.strategy, r.num_queries) for r in converged] == [(r.strategy, r.num_queries) for r in fixed]
+
+
+def test_rob_plans_on_rescaled_samples_as_in_the_main_experiment(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The IRD plan before any question is the main experiment's planner on the cold posterior's
+    samples rescaled over the training map (``sample_scale="training_spread"``, the default);
+    ``"none"`` plans them as they are."""
+    from ird_core import planning, posterior
+    from ird_core.planning.sample_scale import normalise_samples
+    from ird_core.worlds import lavaland
+
+    drawn: list = []
+    sample = posterior.sample_joint_posterior
+
+    def recorded(*args, **kwargs):
+        drawn.append(sample(*args, **kwargs))
+        return drawn[-1]
+
+    monkeypatch.setattr(active.posterior, "sample_joint_posterior", recorded)
+    plans = []
+    for scale in ("training_spread", "none"):
+        drawn.clear()
+        spec = active.ActiveSpec("latent_raw", 7, sample_scale=scale, query_counts=(0,), strategies=("random",), **TINY)
+        zero = next(r for r in active.run_trial(spec) if r.strategy == "random")
+        plans.append(zero.cells)
+        inst = lavaland.make_instance("latent_raw", 7, size=spec.size, horizon=spec.horizon, obs_dim=spec.obs_dim)
+        samples = normalise_samples(drawn[0].samples, inst.train_features) if scale != "none" else drawn[0].samples
+        reference = posterior.proxy_feature_expectations(inst) / (inst.train_horizon + 1)
+        expected = planning.plan_path(lavaland.test_mdp(inst), samples, "per_step", "training_features", reference)
+        assert zero.cells == expected.cells
+    assert plans[0] != plans[1]  # on this seed the scale decides the plan
+    with pytest.raises(ValueError, match="sample_scale"):
+        active.ActiveSpec("side_effects", 0, sample_scale="unit")

@@ -37,6 +37,7 @@ from ird_core.mdp import GridMDP
 from ird_core.mdp.optimal_paths import optimal_paths
 from ird_core.planning import sample_cell_rewards
 from ird_core.planning.risk_measures import weighted_cvar_batch
+from ird_core.planning.sample_scale import normalise_samples
 from ird_core.vocabulary import Baseline, parse
 
 __all__ = ["RISK_LEVELS", "MAX_CANDIDATES", "PlanSettings", "Candidates", "query_candidates"]
@@ -56,16 +57,23 @@ class PlanSettings:
     Attributes:
         baseline: one of ``ird_core.vocabulary.BASELINES``.
         reference_features: ``(d,)`` for the ``training_features`` baseline, else ``None``.
+        scale_features: the training map(s) (``(H, W, d)`` each) over which every sample is
+            rescaled to span one unit before the min (``planning.sample_scale.normalise_samples``,
+            as the experiments' and the planner node's IRD plans do), or ``None``: the samples as
+            they are. A positive factor per sample: each sample's own ranking of paths is kept.
     """
 
     baseline: str = Baseline.NONE.value
     reference_features: "np.ndarray | None" = None
+    scale_features: "np.ndarray | tuple[np.ndarray, ...] | None" = None
 
     def __post_init__(self) -> None:
         parse(Baseline, self.baseline, "baseline")
 
     def cell_rewards(self, mdp: GridMDP, samples: np.ndarray) -> np.ndarray:
-        """``(K, H, W)`` baseline-shifted per-cell rewards of the samples."""
+        """``(K, H, W)`` baseline-shifted per-cell rewards of the (rescaled) samples."""
+        if self.scale_features is not None:
+            samples = normalise_samples(samples, self.scale_features)
         return sample_cell_rewards(mdp, samples, self.baseline, self.reference_features)
 
 

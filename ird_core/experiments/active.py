@@ -51,6 +51,7 @@ from ird_core.designer import queries
 from ird_core.designer.candidates import PlanSettings
 from ird_core.experiments import statistics
 from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
+from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
 from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland
 
@@ -118,6 +119,10 @@ class ActiveSpec:
     # Chain recipe (:meth:`sampler_options`): "fixed", the experiments' small fixed-length MaxEnt-Z
     # chains for either method; "converged", the main experiment's recipe for the spec's method.
     chains: str = "fixed"
+    # The IRD plans' samples, as in the main experiment (``TrialSpec.sample_scale``):
+    # "training_spread" rescales each to span one unit over the training map before the per-step
+    # min (Rob's plan and the plan the queries are about), "none" plans them as they are.
+    sample_scale: str = "training_spread"
     query_counts: tuple[int, ...] = QUERY_COUNTS
     strategies: tuple[str, ...] = EXPERIMENT_STRATEGIES
     num_options: int = 2
@@ -163,6 +168,8 @@ class ActiveSpec:
                     warmup=self.warm_warmup if warm else chain["warmup"])
 
     def __post_init__(self) -> None:
+        if self.sample_scale not in SAMPLE_SCALES:
+            raise ValueError(f"sample_scale: expected one of {SAMPLE_SCALES}, got {self.sample_scale!r}")
         if self.chains not in CHAINS:
             raise ValueError(f"chains: expected one of {CHAINS}, got {self.chains!r}")
         if self.chains == "converged" and (self.warmup is not None or self.max_leapfrog is not None):
@@ -268,10 +275,12 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                     **spec.sampler_options(proxy.dim, warm=initial is not None))
         return resampled[key]
 
-    rob = PlanSettings(MAIN_BASELINE, reference)
+    training_maps = (inst.train_features, *(w.features for w in inst.extra_training_worlds))
+    rob = PlanSettings(MAIN_BASELINE, reference, training_maps if spec.sample_scale == "training_spread" else None)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
-        return planning.plan_path(test, post.samples, PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
+        samples = post.samples if rob.scale_features is None else normalise_samples(post.samples, rob.scale_features)
+        return planning.plan_path(test, samples, PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
 
     def propose(strategy: str, samples: np.ndarray, j: int) -> "queries.Query | None":
         try:

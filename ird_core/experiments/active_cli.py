@@ -34,6 +34,7 @@ from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.experiments.report import RunRecord
+from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS
 
@@ -67,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "--prior-sigma the prior follows it, sigma = 1 / (temperature * rms training feature norm)")
     p.add_argument("--method", default=d.method, choices=METHODS)
     p.add_argument("--warm-warmup", type=int, default=d.warm_warmup, help="warm-up of each re-sample after an answer")
+    p.add_argument("--sample-scale", default=d.sample_scale, choices=SAMPLE_SCALES,
+                   help="the IRD plans' samples: rescaled to span one unit over the training map before the "
+                        "per-step min (training_spread, the default, as in the main experiment) or as they are")
     p.add_argument("--chains", default=d.chains, choices=active.CHAINS,
                    help="fixed: the small fixed-length MaxEnt-Z chains (default); converged: the main experiment's "
                         "recipe for --method, run until converged (the sampler flags are then not used)")
@@ -84,7 +88,7 @@ def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
                 beta=args.beta, prior_sigma=args.prior_sigma, temperature=args.temperature, method=args.method,
                 num_chains=args.num_chains,
                 warmup=args.warmup, thin=args.thin, max_leapfrog=args.max_leapfrog, warm_warmup=args.warm_warmup,
-                chains=args.chains,
+                chains=args.chains, sample_scale=args.sample_scale,
                 query_counts=tuple(sorted(set(args.query_counts))), strategies=tuple(args.strategies),
                 num_options=args.num_options, designer_beta=args.designer_beta, choice_beta=args.choice_beta)
 

@@ -69,16 +69,19 @@ class QueryJob:
     num_options: int
     strategy: QueryStrategy
     seed: int
-    # Rob's plan on the query map is the planner's default (per step, the min, baseline
-    # training_features); its reference counts come from this job (None: no baseline).
+    # Rob's plan on the query map is the planner's default (per step, the min over samples
+    # rescaled on the training map, baseline training_features); its reference counts and
+    # training map come from this job (None: unscaled, no baseline).
     reference: ReferenceJob | None = None
 
 
 def plan_settings(reference: ReferenceJob | None) -> PlanSettings:
-    """Rob's plan settings: the ``training_features`` baseline when a reference is given."""
+    """Rob's plan settings when a reference is given: the planner node's defaults, the
+    ``training_features`` baseline and every sample rescaled over the training map
+    (``sample_scale`` training_spread); without one, the unscaled min with no baseline."""
     if reference is None:
         return PlanSettings()
-    return PlanSettings("training_features", reference_features(reference))
+    return PlanSettings("training_features", reference_features(reference), reference.target_features)
 
 
 @dataclass(frozen=True)

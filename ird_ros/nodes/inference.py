@@ -54,7 +54,8 @@ Questions to the designer (docs/spec.md section 7; the evidence's lifetime is do
 
 - ``/ird/query`` (ProposeQuery) proposes ``queries.propose_query(query_mdp, samples, answer_beta,
   num_options, strategy, seed, plan)`` from the current posterior's samples, ``plan`` Rob's
-  default plan (per step, the min, the ``training_features`` baseline of the evidence's proxy:
+  default plan (the planner's defaults: per step, the min over the samples rescaled on the
+  evidence's training map, the ``training_features`` baseline of the evidence's proxy:
   ``inference_queries.query_reference``): candidates and EVOI are those of the plan Rob will
   drive. Empty ``map`` = the latest test map with the posterior's features
   (``/world/test_features``, else ``/terrain/features``); ``horizon`` 0 = ``/world/proxy``'s test

@@ -127,3 +127,20 @@ def test_scaled_weights_stay_plannable_whatever_the_features_size(seed: int) -> 
     scaled = normalise_samples(weights, train)
     assert np.abs(scaled).max() <= MAX_SCALED_WEIGHT * (1 + 1e-12)
     planning.plan_path(GridMDP(train, (0, 0), 2), scaled, "per_step")
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_robs_plan_among_the_query_candidates_is_the_planners_scaled_plan(seed: int) -> None:
+    """``PlanSettings(scale_features=...)``: the candidates' "plan" path (the one the questions
+    are about) is the planner's per-step plan on the rescaled samples, whatever one sample's size;
+    without it, Rob's plan is the unscaled one."""
+    from ird_core.designer.candidates import PlanSettings, query_candidates
+
+    train, mdp, weights = tiny(seed)
+    factors = 10.0 ** np.random.default_rng(seed + 200).uniform(-2, 2, size=(len(weights), 1))
+    for w in (weights, factors * weights):
+        rob = query_candidates(mdp, w, PlanSettings(scale_features=train), alternatives=0)
+        planner = planning.plan_path(mdp, normalise_samples(w, train), "per_step")
+        assert [tuple(c) for c in rob.cells[list(rob.sources).index("plan")].tolist()] == [tuple(c) for c in planner.cells]
+        plain = query_candidates(mdp, w, PlanSettings(), alternatives=0)
+        assert [tuple(c) for c in plain.cells[0].tolist()] == [tuple(c) for c in planning.plan_path(mdp, w, "per_step").cells]

@@ -116,8 +116,9 @@ def test_query_contract_and_answers(probe: Probe) -> None:
 
 
 def test_the_default_query_is_evoi_for_robs_plan(probe: Probe) -> None:
-    """strategy "" is EVOI among the rich candidates of Rob's default plan (per step, the min, the
-    training-features baseline of the proxy): the very query the library proposes."""
+    """strategy "" is EVOI among the rich candidates of Rob's default plan (the planner's: per
+    step, the min over samples rescaled on the training map, the training-features baseline of
+    the proxy): the very query the library proposes."""
     world = probe.world()
     proxy = world.proxy
     post0 = probe.infer(world)
@@ -130,7 +131,7 @@ def test_the_default_query_is_evoi_for_robs_plan(probe: Probe) -> None:
     test = GridMDP(conv.feature_grid_from_msg(world.test).features.astype(np.float64),
                    (proxy.test_start_row, proxy.test_start_col), proxy.test_horizon)
     reference = core_posterior.proxy_feature_counts(train, np.asarray(proxy.weights, np.float64), train.features)
-    plan = PlanSettings("training_features", reference / (proxy.horizon + 1))
+    plan = PlanSettings("training_features", reference / (proxy.horizon + 1), train.features)
     expected = core_queries.propose_query(test, post0.samples, ANSWER_BETA, 2, "evoi", 4, plan)
     np.testing.assert_allclose(resp.option_features, expected.option_features, rtol=1e-12, atol=1e-9)
     for cells, want in zip(resp.options, expected.option_cells):
