@@ -88,3 +88,31 @@ def test_an_answered_query_cannot_be_answered_again() -> None:
 def test_resample_seeds_differ_per_round_and_fit_uint32() -> None:
     seeds = [resample_seed(2**32 - 1, n) for n in range(1, 50)]
     assert len(set(seeds)) == len(seeds) and all(0 <= s < 2**32 for s in seeds)
+
+
+def test_robs_plan_for_a_query_is_the_planners_scaled_plan() -> None:
+    """The inference node's query settings (``plan_settings``) plan as the planner node does by
+    default: every sample rescaled on the evidence's training map, then the per-step min with the
+    proxy's training_features baseline; so Rob's candidate plan is the planner's plan."""
+    from ird_core import planning
+    from ird_core.designer.candidates import PlanSettings, query_candidates
+    from ird_core.mdp import GridMDP
+    from ird_core.planning.sample_scale import normalise_samples
+    from ird_ros.jobs.inference_queries import plan_settings
+    from ird_ros.jobs.planning import ReferenceJob, reference_features
+
+    rng = np.random.default_rng(2)  # a seed on which the unscaled min plans another path
+    train = GridMDP(rng.normal(size=(4, 4, 3)), (0, 0), 4)
+    reference = ReferenceJob(train, np.array([1.0, -0.5, 0.2]), train.features)
+    settings = plan_settings(reference)
+    assert settings.scale_features is train.features
+    test = GridMDP(rng.normal(size=(5, 5, 3)), (0, 0), 5)
+    samples = rng.normal(size=(6, 3)) * np.array([[0.01], [100.0], [1.0], [3.0], [0.1], [10.0]])
+    rob = query_candidates(test, samples, settings, alternatives=0)
+    planner = planning.plan_path(test, normalise_samples(samples, train.features), "per_step", "training_features",
+                                 reference_features(reference))
+    assert [tuple(c) for c in rob.cells[0].tolist()] == [tuple(c) for c in planner.cells]
+    unscaled = query_candidates(test, samples, PlanSettings("training_features", reference_features(reference)),
+                                alternatives=0)
+    assert [tuple(c) for c in unscaled.cells[0].tolist()] != [tuple(c) for c in planner.cells]
+    assert plan_settings(None).scale_features is None
