@@ -12,9 +12,10 @@ import pytest
 from ird_core import experiments
 from ird_core.experiments import active, active_cli, active_endpoints, active_report
 
-TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4, warm_warmup=5)
+TINY = dict(size=5, horizon=5, obs_dim=4, num_samples=16, num_chains=2, warmup=10, thin=1, max_leapfrog=4, warm_warmup=5,
+            chains="fixed")
 TINY_ARGS = ["--size", "5", "--horizon", "5", "--obs-dim", "4", "--num-samples", "16", "--num-chains", "2",
-             "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--warm-warmup", "5"]
+             "--warmup", "10", "--thin", "1", "--max-leapfrog", "4", "--warm-warmup", "5", "--chains", "fixed"]
 
 
 def _key(results):
@@ -190,7 +191,7 @@ def test_the_chains_follow_the_weight_space_size_unless_the_spec_sets_them() -> 
     spec = ActiveSpec("latent_raw", 0)
     assert spec.chain_settings(4) == dict(warmup=50, max_leapfrog=16, warmup_max_leapfrog=None)
     assert spec.chain_settings(50) == dict(warmup=100, max_leapfrog=64, warmup_max_leapfrog=32)
-    explicit = ActiveSpec("latent_raw", 0, warmup=30, max_leapfrog=8)
+    explicit = ActiveSpec("latent_raw", 0, warmup=30, max_leapfrog=8, chains="fixed")
     assert explicit.chain_settings(50) == dict(warmup=30, max_leapfrog=8, warmup_max_leapfrog=32)
 
 
@@ -209,14 +210,15 @@ def test_the_converged_chains_are_the_main_experiments_recipe_for_the_method() -
         assert spec.sampler_options(dim, warm=True) == dict(recipe, warmup=25)
     assert ActiveSpec("side_effects", 0, method="sample_z", chains="converged").sampler_options(4, False)["kernel"] \
         == "independence_elliptical"
-    fixed = ActiveSpec("side_effects", 0, method="sample_z")
+    assert ActiveSpec("side_effects", 0).chains == "converged"
+    fixed = ActiveSpec("side_effects", 0, method="sample_z", chains="fixed")
     assert fixed.sampler_options(4, warm=False) == dict(num_chains=4, thin=4, max_leapfrog=16, warmup_max_leapfrog=None,
                                                         warmup=50)
     assert fixed.sampler_options(4, warm=True)["warmup"] is None  # the library's warm warm-up
     with pytest.raises(ValueError, match="chains"):
         ActiveSpec("side_effects", 0, chains="long")
     with pytest.raises(ValueError, match="warmup, max_leapfrog"):
-        ActiveSpec("side_effects", 0, chains="converged", warmup=30)
+        ActiveSpec("side_effects", 0, warmup=30)
 
 
 @pytest.mark.slow
@@ -225,8 +227,8 @@ def test_a_converged_trial_runs_its_posteriors_until_they_converge() -> None:
     and most re-samples unconverged; with its own recipe, run until converged, every one passes
     R-hat <= 1.1."""
     small = dict(size=5, horizon=5, obs_dim=4, num_samples=16)
-    fixed = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", **small))
-    converged = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", chains="converged", **small))
+    fixed = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", chains="fixed", **small))
+    converged = active.run_trial(active.ActiveSpec("side_effects", 0, method="sample_z", **small))
     def r_hats(results: "Iterable[active.ActiveResult]") -> list[float]:
         return [r.r_hat_max for r in results if r.strategy not in ("literal", "oracle")]
 

@@ -92,10 +92,10 @@ _SMALL = TrialSpec("side_effects", 0, **QUICK)
 class ActiveSpec:
     """Everything one trial depends on. The map and the observations are the paper's (15x15,
     T = 30, 50-d observations in the latent conditions, as in Figure 4); the sampler settings are
-    the experiments' small fixed-length ones (:data:`ird_core.experiments.QUICK`: 64 samples,
-    beta 50, 4 chains; warm-up and leapfrog cap per weight-space size, :meth:`chain_settings`), with
-    MaxEnt-Z (its gradient is cheap); ``chains="converged"`` runs the main experiment's recipe for
-    ``method`` instead (:meth:`sampler_options`). The designer model is the
+    the main experiment's recipe for ``method``, run until converged (``chains="converged"``,
+    :meth:`sampler_options`; 64 samples, beta 50), or with ``chains="fixed"`` the small
+    fixed-length ones (4 chains; warm-up and leapfrog cap per weight-space size,
+    :meth:`chain_settings`), with MaxEnt-Z by default. The designer model is the
     calibrated one (``temperature``; ``prior_sigma`` None: ``1 / (temperature * feature scale)``,
     ``ird_core.posterior.calibration``)."""
 
@@ -116,9 +116,9 @@ class ActiveSpec:
     # Warm-up of each re-sample after an answer; None: the library's ``DEFAULT_WARM_WARMUP`` (50
     # for MaxEnt-Z; shorter warm-ups leave more re-samples unconverged, docs/benchmarks.md).
     warm_warmup: "int | None" = None
-    # Chain recipe (:meth:`sampler_options`): "fixed", the experiments' small fixed-length MaxEnt-Z
-    # chains for either method; "converged", the main experiment's recipe for the spec's method.
-    chains: str = "fixed"
+    # Chain recipe (:meth:`sampler_options`): "converged", the main experiment's recipe for the
+    # spec's method, run until converged; "fixed", the small fixed-length MaxEnt-Z chains.
+    chains: str = "converged"
     # The IRD plans' samples, as in the main experiment (``TrialSpec.sample_scale``):
     # "training_spread" rescales each to span one unit over the training map before the per-step
     # min (Rob's plan and the plan the queries are about), "none" plans them as they are.
@@ -174,7 +174,7 @@ class ActiveSpec:
             raise ValueError(f"chains: expected one of {CHAINS}, got {self.chains!r}")
         if self.chains == "converged" and (self.warmup is not None or self.max_leapfrog is not None):
             raise ValueError("warmup, max_leapfrog: the 'converged' chains use the main experiment's recipe; "
-                             "leave them unset (None)")
+                             "leave them unset (None) or choose chains='fixed'")
         if self.prior_sigma is not None and not (math.isfinite(self.prior_sigma) and self.prior_sigma > 0):
             raise ValueError(f"prior_sigma must be a finite number > 0 or None, got {self.prior_sigma!r}")
         if self.condition not in lavaland.ALL_CONDITIONS:

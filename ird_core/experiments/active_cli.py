@@ -72,8 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the IRD plans' samples: rescaled to span one unit over the training map before the "
                         "per-step min (training_spread, the default, as in the main experiment) or as they are")
     p.add_argument("--chains", default=d.chains, choices=active.CHAINS,
-                   help="fixed: the small fixed-length MaxEnt-Z chains (default); converged: the main experiment's "
-                        "recipe for --method, run until converged (the sampler flags are then not used)")
+                   help="converged (default): the main experiment's recipe for --method, run until converged "
+                        "(--num-chains, --warmup, --thin, --max-leapfrog are then not used); fixed: the small "
+                        "fixed-length MaxEnt-Z chains those flags set")
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rewrite the report in --out from its active_trials.csv and run.json")
     p.add_argument("--merge", nargs="+", type=Path, default=None, metavar="DIR",
