@@ -70,11 +70,13 @@ class PlanSettings:
     def __post_init__(self) -> None:
         parse(Baseline, self.baseline, "baseline")
 
+    def scaled(self, samples: np.ndarray) -> np.ndarray:
+        """``(K, d)`` the samples Rob plans on: rescaled over ``scale_features``, or as they are."""
+        return samples if self.scale_features is None else normalise_samples(samples, self.scale_features)
+
     def cell_rewards(self, mdp: GridMDP, samples: np.ndarray) -> np.ndarray:
         """``(K, H, W)`` baseline-shifted per-cell rewards of the (rescaled) samples."""
-        if self.scale_features is not None:
-            samples = normalise_samples(samples, self.scale_features)
-        return sample_cell_rewards(mdp, samples, self.baseline, self.reference_features)
+        return sample_cell_rewards(mdp, self.scaled(samples), self.baseline, self.reference_features)
 
 
 class Candidates(NamedTuple):

@@ -51,7 +51,7 @@ from ird_core.designer import queries
 from ird_core.designer.candidates import PlanSettings
 from ird_core.experiments import statistics
 from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
-from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
+from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland
 
@@ -279,8 +279,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
     rob = PlanSettings(MAIN_BASELINE, reference, training_maps if spec.sample_scale == "training_spread" else None)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
-        samples = post.samples if rob.scale_features is None else normalise_samples(post.samples, rob.scale_features)
-        return planning.plan_path(test, samples, PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
+        return planning.plan_path(test, rob.scaled(post.samples), PlanMode.PER_STEP, MAIN_BASELINE, reference).cells
 
     def propose(strategy: str, samples: np.ndarray, j: int) -> "queries.Query | None":
         try:
