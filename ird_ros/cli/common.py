@@ -116,13 +116,27 @@ def say(text: str) -> None:
 @contextlib.contextmanager
 def client(args: argparse.Namespace, verb: str) -> Iterator[Any]:
     """An ``IrdClient`` in the verb's domain (node ``_ird_<verb>_<pid>``: hidden, as ``ros2``'s own),
-    after printing the domain banner on stderr."""
+    after printing the domain banner on stderr.
+
+    The client's node belongs to one single-threaded executor for the verb's lifetime, which every
+    wait spins (``ird_ros.waits.spin_until`` spins the node's executor). It is built before the verb
+    prints anything a person answers with Ctrl-C: a SIGINT inside an executor's constructor (a
+    temporary one per wait, otherwise) leaves a half-built object whose ``__del__`` prints a traceback.
+    """
+    from rclpy.executors import SingleThreadedExecutor
+
     from ird_ros.client import IrdClient
 
     domain = resolve_domain(args)
     say(domain_banner(domain, "searched for the graph"))
     with IrdClient(domain, node_name=f"_ird_{verb}_{os.getpid()}") as ird:
-        yield ird
+        executor = SingleThreadedExecutor(context=ird.node.context)
+        try:
+            executor.add_node(ird.node)
+            yield ird
+        finally:
+            executor.remove_node(ird.node)
+            executor.shutdown()
 
 
 def no_graph(domain_id: int, what: str) -> CliError:

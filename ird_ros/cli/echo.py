@@ -35,7 +35,7 @@ from ird_ros.cli.common import (
 )
 from ird_ros.graph import names
 
-__all__ = ["add_parser", "run", "topic_name", "choose_qos", "reading_executor"]
+__all__ = ["add_parser", "run", "topic_name", "choose_qos"]
 
 
 def _count(text: str) -> int:
@@ -147,10 +147,6 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"{topic}: {exc}", EXIT_USAGE) from None
         received: list[Any] = []
         subscription = ird.node.create_subscription(msg_class, topic, received.append, choose_qos(ird.node, topic))
-        # The executor exists before the line a person (or a test) answers with Ctrl-C: a SIGINT
-        # inside an executor's constructor leaves a half-built object whose __del__ prints a
-        # traceback.
-        executor = reading_executor(ird.node)
         say(f"ird echo: reading {topic} [{type_name}]")
         printed = 0
 
@@ -164,19 +160,9 @@ def run(args: argparse.Namespace) -> int:
                 printed += 1
             return args.count is not None and printed >= args.count
 
-        try:
+        try:  # spins the verb's executor, built before this line (cli.common.client)
             ird.spin_until(print_new, timeout=float("inf"), what=f"messages on {topic}")
         finally:
-            executor.remove_node(ird.node)
-            executor.shutdown()
             ird.node.destroy_subscription(subscription)
     return EXIT_OK
 
-
-def reading_executor(node: Any) -> Any:
-    """A single-threaded executor holding ``node`` (``spin_until`` spins the node's executor)."""
-    from rclpy.executors import SingleThreadedExecutor
-
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    return executor

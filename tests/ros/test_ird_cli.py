@@ -201,6 +201,24 @@ def test_ctrl_c_ends_echo_with_130(graph: Any) -> None:
     assert "ird echo: interrupted" in out.splitlines()
 
 
+def test_every_verb_spins_one_executor_for_its_lifetime(graph: Any) -> None:
+    """The verbs' client node belongs to one executor from before their first wait to their end,
+    which every wait spins (a temporary executor per wait could be half-built by a Ctrl-C)."""
+    import argparse
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    from ird_ros.cli.common import client
+
+    with client(argparse.Namespace(domain_id=graph.domain_id), "test") as ird:
+        executor = ird.node.executor
+        assert isinstance(executor, SingleThreadedExecutor)
+        ird.wait_ready(timeout=60)
+        ird.spin_until(lambda: (names.NODE_WORLD, "/") in ird.node.get_node_names_and_namespaces(),
+                       timeout=60, what="the world node")
+        assert ird.node.executor is executor  # the waits spun it and left the node on it
+
+
 # --- ird navigate --------------------------------------------------------------------------------
 
 def _instance(ird: Any) -> Any:
