@@ -6,6 +6,7 @@ is recomputed, and the journal is gone once the report is written."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +84,32 @@ def test_unreadable_or_foreign_entries_count_as_not_finished(tmp_path: Path) -> 
     journal.record(8, 64)
     (tmp_path / JOURNAL_DIR / f"{Journal.key(9)}.pkl").write_bytes(path.with_name(f"{Journal.key(8)}.pkl").read_bytes())
     assert journal.load(9) is MISSING  # a file whose item is another one's
+
+
+@pytest.mark.timeout(300)
+def test_a_resumed_chunk_merges_with_the_others(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """How many trials a chunk kept from its journal is how it ran, not what: the chunks merge,
+    and the merged run says how many trials were resumed in all."""
+    monkeypatch.setattr(cli, "code_version", lambda: CLEAN)
+    args = ["--trials", "2", "--workers", "1", "--conditions", "side_effects", "--no-factorial", *TINY_ARGS]
+    run_trial = cli.run_trial
+
+    def stop_at_second(spec: Any) -> Any:
+        if spec.seed == 1:
+            raise Stop
+        return run_trial(spec)
+
+    monkeypatch.setattr(cli, "run_trial", stop_at_second)
+    with pytest.raises(Stop):
+        cli.main([*args, "--out", str(tmp_path / "a")])
+    monkeypatch.setattr(cli, "run_trial", run_trial)
+    assert cli.main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert cli.main([*args, "--seed", "2", "--out", str(tmp_path / "b")]) == 0
+    assert cli.main(["--report-only", "--out", str(tmp_path / "ab"), "--merge", str(tmp_path / "a"),
+                     str(tmp_path / "b")]) == 0
+    settings = json.loads((tmp_path / "ab" / "run.json").read_text())["settings"]
+    assert (settings["trials"], settings["resumed_trials"]) == (4, 1)
+    assert {row["seed"] for row in _rows(tmp_path / "ab" / "trials.csv")} == {"0", "1", "2", "3"}
 
 
 def _rows(path: Path) -> list[dict[str, Any]]:

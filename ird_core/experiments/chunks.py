@@ -3,8 +3,9 @@ disjoint trials, e.g. seeds 0-49 and 50-99, or one condition per machine or per 
 
 Invariants: chunks are merged only when every setting but :data:`CHUNK_KEYS` is equal and no
 trial key (condition, seed, planner, ...) occurs in two of them; the merged settings give the
-number of distinct seeds as ``trials`` and the seeds' range and chunk count as ``seed``; the
-merged command joins the chunks' commands with ``" && "``, and the merged wall time is the sum of
+number of distinct seeds as ``trials``, the seeds' range and chunk count as ``seed`` and the sum
+of the chunks' ``resumed_trials`` (trials an interrupted chunk kept from its journal: how the
+chunk was run, not what it ran) when any has one; the merged command joins the chunks' commands with ``" && "``, and the merged wall time is the sum of
 theirs. Each chunk is a report directory with its ``run.json``.
 """
 
@@ -22,7 +23,7 @@ __all__ = ["CHUNK_KEYS", "MergedRun", "read_run", "merge_runs", "load_chunks"]
 T = TypeVar("T")
 
 #: Settings that may differ between the chunks of one report.
-CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler")
+CHUNK_KEYS: tuple[str, ...] = ("trials", "seed", "workers", "scheduler", "resumed_trials")
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,10 @@ def merge_runs(runs: Sequence[Mapping[str, Any]], keys: Sequence[Hashable], seed
     command = runs[0]["command"]
     if len(runs) > 1:
         settings.update(trials=len(distinct), seed=f"{distinct[0]}..{distinct[-1]} in {len(runs)} chunks")
+        settings.pop("resumed_trials", None)
+        resumed = sum(int(run["settings"].get("resumed_trials") or 0) for run in runs)
+        if resumed:
+            settings["resumed_trials"] = resumed
         command = " && ".join(run["command"] for run in runs)
     return MergedRun(command, sum(float(run["wall_seconds"]) for run in runs), settings,
                      merged_code(str(run.get("code", NOT_RECORDED)) for run in runs))
