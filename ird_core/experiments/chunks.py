@@ -5,8 +5,9 @@ Invariants: chunks are merged only when every setting but :data:`CHUNK_KEYS` is 
 trial key (condition, seed, planner, ...) occurs in two of them; the merged settings give the
 number of distinct seeds as ``trials``, the seeds' range and chunk count as ``seed`` and the sum
 of the chunks' ``resumed_trials`` (trials an interrupted chunk kept from its journal: how the
-chunk was run, not what it ran) when any has one; the merged command joins the chunks' commands with ``" && "``, and the merged wall time is the sum of
-theirs. Each chunk is a report directory with its ``run.json``.
+chunk was run, not what it ran) when any has one; the merged command joins the chunks' commands
+with ``" && "``, and the merged wall time is the sum of theirs. Each chunk is a report directory
+with its ``run.json``.
 """
 
 from __future__ import annotations
