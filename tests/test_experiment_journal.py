@@ -86,23 +86,28 @@ def test_unreadable_or_foreign_entries_count_as_not_finished(tmp_path: Path) -> 
     assert journal.load(9) is MISSING  # a file whose item is another one's
 
 
+def _interrupt_at(monkeypatch: pytest.MonkeyPatch, seed: int, argv: list[str]) -> None:
+    """Run ``run_experiments.py argv``, interrupted when it reaches the trial of ``seed``."""
+    run_trial = cli.run_trial
+
+    def stop_at_seed(spec: Any) -> Any:
+        if spec.seed == seed:
+            raise Stop
+        return run_trial(spec)
+
+    monkeypatch.setattr(cli, "run_trial", stop_at_seed)
+    with pytest.raises(Stop):
+        cli.main(argv)
+    monkeypatch.setattr(cli, "run_trial", run_trial)
+
+
 @pytest.mark.timeout(300)
 def test_a_resumed_chunk_merges_with_the_others(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """How many trials a chunk kept from its journal is how it ran, not what: the chunks merge,
     and the merged run says how many trials were resumed in all."""
     monkeypatch.setattr(cli, "code_version", lambda: CLEAN)
     args = ["--trials", "2", "--workers", "1", "--conditions", "side_effects", "--no-factorial", *TINY_ARGS]
-    run_trial = cli.run_trial
-
-    def stop_at_second(spec: Any) -> Any:
-        if spec.seed == 1:
-            raise Stop
-        return run_trial(spec)
-
-    monkeypatch.setattr(cli, "run_trial", stop_at_second)
-    with pytest.raises(Stop):
-        cli.main([*args, "--out", str(tmp_path / "a")])
-    monkeypatch.setattr(cli, "run_trial", run_trial)
+    _interrupt_at(monkeypatch, 1, [*args, "--out", str(tmp_path / "a")])
     assert cli.main([*args, "--out", str(tmp_path / "a")]) == 0
     assert cli.main([*args, "--seed", "2", "--out", str(tmp_path / "b")]) == 0
     assert cli.main(["--report-only", "--out", str(tmp_path / "ab"), "--merge", str(tmp_path / "a"),
@@ -128,18 +133,8 @@ def test_run_experiments_resumes_and_writes_the_uninterrupted_report(tmp_path: P
     args = ["--trials", "3", "--workers", "1", "--conditions", "side_effects", *TINY_ARGS]
     assert cli.main([*args, "--out", str(tmp_path / "whole")]) == 0
 
-    run_trial = cli.run_trial
-
-    def stop_at_third(spec: Any) -> Any:
-        if spec.seed == 2:
-            raise Stop
-        return run_trial(spec)
-
-    monkeypatch.setattr(cli, "run_trial", stop_at_third)
-    with pytest.raises(Stop):
-        cli.main([*args, "--out", str(tmp_path / "resumed")])
+    _interrupt_at(monkeypatch, 2, [*args, "--out", str(tmp_path / "resumed")])
     assert len(list((tmp_path / "resumed" / JOURNAL_DIR).glob("*.pkl"))) == 2
-    monkeypatch.setattr(cli, "run_trial", run_trial)
     capsys.readouterr()
     assert cli.main([*args, "--out", str(tmp_path / "resumed")]) == 0
     assert "resuming, 2 of 3 trials already done" in capsys.readouterr().err

@@ -275,8 +275,7 @@ def run_trial(spec: ActiveSpec) -> list[ActiveResult]:
                     **spec.sampler_options(proxy.dim, warm=initial is not None))
         return resampled[key]
 
-    training_maps = (inst.train_features, *(w.features for w in inst.extra_training_worlds))
-    rob = PlanSettings(MAIN_BASELINE, reference, training_maps if spec.sample_scale == "training_spread" else None)
+    rob = PlanSettings(MAIN_BASELINE, reference, inst.training_maps if spec.sample_scale == "training_spread" else None)
 
     def plan(post: posterior.Posterior) -> tuple[tuple[int, int], ...]:
         return planning.plan_path(test, rob.scaled(post.samples), PlanMode.PER_STEP, MAIN_BASELINE, reference).cells

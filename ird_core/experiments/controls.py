@@ -91,9 +91,8 @@ def control_results(spec: Any, inst: lavaland.LavalandInstance, reference: np.nd
     rows.append(_row("controls", spec, "prior_only", "prior", inst, _plan(inst, scaled_prior, reference, risk), nan3))
     if spec.frontier:
         rows += frontier_results(spec, inst, "prior", prior, reference, nan3)
-    worlds = [inst.train_features, *(w.features for w in inst.extra_training_worlds)]
     cells = novelty_avoiding_path(lavaland.test_mdp(inst, proxy=True), inst.proxy_weights,
-                                  novel_cells(list(worlds), inst.test_features))
+                                  novel_cells(list(inst.training_maps), inst.test_features))
     rows.append(TrialResult("controls", spec.condition, spec.seed, "novelty", "novelty", "literal", "none",
                             *outcome(inst, cells), math.nan, "dp", False, *nan3,
                             tuple((int(r), int(c)) for r, c in cells)))

@@ -286,15 +286,14 @@ class TrialSpec:
     def prior_sigma_for(self, inst: lavaland.LavalandInstance) -> float:
         """The prior standard deviation of ``inst``'s hypothesis space: the spec's, or the calibrated
         one of its temperature and training features (``posterior.calibration``)."""
-        maps = [inst.train_features, *(w.features for w in inst.extra_training_worlds)]
-        return posterior.resolve_prior_sigma(self.prior_sigma, self.temperature, maps)
+        return posterior.resolve_prior_sigma(self.prior_sigma, self.temperature, inst.training_maps)
 
     def planning_samples(self, inst: lavaland.LavalandInstance, samples: np.ndarray) -> np.ndarray:
         """The samples the IRD planners use: ``samples`` in units of their training spread
         (:func:`ird_core.planning.sample_scale.normalise_samples`), or unchanged with ``"none"``."""
         if self.sample_scale == "none":
             return samples
-        return normalise_samples(samples, [inst.train_features, *(w.features for w in inst.extra_training_worlds)])
+        return normalise_samples(samples, inst.training_maps)
 
     def main_risk(self) -> dict:
         """``plan_path``'s risk keywords of the main IRD planner."""

@@ -64,7 +64,7 @@ def with_novelty_feature(inst: lavaland.LavalandInstance, value: str = "feature_
         raise ValueError(f"value: expected one of {NOVELTY_VALUES}, got {value!r}")
     if NOVELTY_FEATURE in inst.feature_names:
         raise ValueError(f"feature_names: already has a {NOVELTY_FEATURE!r} feature")
-    worlds = [inst.train_features, *(world.features for world in inst.extra_training_worlds)]
+    worlds = list(inst.training_maps)
     on_novel = feature_scale(worlds) if value == "feature_scale" else 1.0
     novel = novel_cells(list(worlds), inst.test_features) * on_novel
     extra = tuple(dataclasses.replace(world, features=_with_column(world.features, np.zeros(world.features.shape[:2])))

@@ -188,8 +188,7 @@ def fourier_map(input_dim: int, num_features: int, length_scale: float,
 
 
 def _instance_map(inst: lavaland.LavalandInstance, num_features: int, factor: float) -> FourierMap:
-    worlds = [inst.train_features, *(world.features for world in inst.extra_training_worlds)]
-    scale = median_length_scale(list(worlds), factor)
+    scale = median_length_scale(list(inst.training_maps), factor)
     return fourier_map(inst.num_features, num_features, scale, np.random.SeedSequence([int(inst.seed), RFF_STREAM]))
 
 

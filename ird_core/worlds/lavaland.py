@@ -265,6 +265,11 @@ class LavalandInstance:
     def num_features(self) -> int:
         return len(self.feature_names)
 
+    @property
+    def training_maps(self) -> tuple[np.ndarray, ...]:
+        """The ``(H, W, d)`` hypothesis features of every training world, the first one first."""
+        return (self.train_features, *(w.features for w in self.extra_training_worlds))
+
 
 def _one_hot(labels: np.ndarray, num: int) -> np.ndarray:
     """(H, W) labels in 0..num-1 -> (H, W, num) float64 indicators."""

@@ -165,4 +165,3 @@ def run(args: argparse.Namespace) -> int:
         finally:
             ird.node.destroy_subscription(subscription)
     return EXIT_OK
-
