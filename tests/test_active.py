@@ -92,6 +92,32 @@ def test_spec_errors() -> None:
         active.ActiveSpec("side_effects", 0, designer_beta=-1.0)
 
 
+@pytest.mark.parametrize("field, value", [
+    ("seed", -1), ("size", 2), ("horizon", 0), ("obs_dim", 2), ("num_samples", 0), ("beta", -1.0),
+    ("temperature", 0.0), ("temperature", float("nan")), ("method", "laplace_z"), ("num_chains", 0), ("thin", 0),
+    ("warm_warmup", -1),
+])
+def test_a_spec_names_a_field_no_trial_can_use(field: str, value: object) -> None:
+    """Refused when the spec is made, in the parent, not when a worker first runs the trial."""
+    with pytest.raises(ValueError, match=field):
+        active.ActiveSpec("latent_raw", **{"seed": 0, field: value})
+    with pytest.raises(ValueError, match="max_leapfrog"):
+        active.ActiveSpec("latent_raw", 0, chains="fixed", max_leapfrog=0)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seed", "-5"], "bad argument: seed must be a non-negative int, got -5"),
+    (["--size", "2"], "bad argument: size must be at least 3x3, got 2x2"),
+    (["--temperature", "0"], "bad argument: temperature: expected a finite number in [0.001, 1000], got 0.0"),
+    (["--warm-warmup", "-3"], "bad argument: warm_warmup: expected an integer >= 0, got -3"),
+])
+def test_the_command_line_refuses_a_bad_setting_before_any_trial(tmp_path, capsys, argv, message) -> None:
+    out = tmp_path / "active"
+    assert active_cli.main(["--trials", "1", "--workers", "1", "--out", str(out), *argv]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
 @pytest.mark.timeout(600)
 def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_trials) -> None:
     mod = active_cli

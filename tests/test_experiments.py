@@ -13,6 +13,7 @@ import pytest
 
 from ird_core import experiments as ex
 from ird_core.experiments import cli, report, trials
+from ird_core.worlds.lavaland import FILE_CONDITION
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -254,6 +255,47 @@ def test_factorial_samples_must_fit_the_posterior():
         ex.TrialSpec("side_effects", 0, num_samples=8, factorial_samples=9)
     with pytest.raises(ValueError, match="z_methods"):
         ex.TrialSpec("side_effects", 0, z_methods=("laplace_z",))
+
+
+@pytest.mark.parametrize("field, value", [
+    ("seed", -1), ("size", 2), ("horizon", 0), ("obs_dim", 2), ("num_samples", 0), ("num_proxy_samples", 0),
+    ("beta", float("nan")), ("beta", -1.0), ("num_chains", 0), ("thin", 0), ("max_leapfrog", 0), ("warmup", -1),
+])
+def test_a_spec_names_a_field_no_trial_can_use(field: str, value: object) -> None:
+    """Refused when the spec is made, in the parent, not when a worker first runs the trial."""
+    with pytest.raises(ValueError, match=field):
+        ex.TrialSpec("latent_raw", **{"seed": 0, field: value})
+
+
+def test_a_world_file_spec_checks_its_seed_not_the_lavaland_map(tmp_path: Path) -> None:
+    ex.TrialSpec(FILE_CONDITION, 0, world=str(tmp_path / "w.yaml"), size=2, obs_dim=0)  # unused by a world file
+    with pytest.raises(ValueError, match="seed"):
+        ex.TrialSpec(FILE_CONDITION, -1, world=str(tmp_path / "w.yaml"))
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seed", "-5"], "seed must be a non-negative int, got -5"),
+    (["--size", "2"], "size must be at least 3x3, got 2x2"),
+    (["--horizon", "0"], "horizon must be an integer >= 1, got 0"),
+    (["--obs-dim", "0"], "obs_dim must be an integer >= 3, got 0"),
+    (["--beta", "-1"], "beta: expected a finite number >= 0, got -1.0"),
+    (["--num-chains", "0"], "num_chains must be >= 1, got 0"),
+])
+def test_the_command_line_refuses_a_bad_setting_before_any_trial(tmp_path: Path, capsys, argv: list[str],
+                                                                 message: str) -> None:
+    out = tmp_path / "out"
+    assert cli.main(["--trials", "1", "--workers", "1", "--out", str(out), *argv]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("workers", ["0", "-2", "two"])
+def test_workers_must_be_a_positive_integer(tmp_path: Path, capsys, workers: str) -> None:
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--trials", "1", "--workers", workers, "--out", str(tmp_path / "out")])
+    assert stop.value.code == 2
+    assert f"argument --workers: expected an integer >= 1, got {workers!r}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 # --------------------------------------------------------------------------- settings

@@ -123,6 +123,16 @@ def test_bad_sizes_are_refused_naming_the_flag(text: str) -> None:
         scale_cli.parse_size(text)
 
 
+@pytest.mark.parametrize("argv, message", [(["--seed", "-1"], "seed must be a non-negative int, got -1"),
+                                           (["--betas", "-2"], "beta: expected a finite number >= 0, got -2.0")])
+def test_the_command_line_refuses_a_bad_seed_or_beta_before_any_diagnosis(tmp_path, capsys, argv, message) -> None:
+    out = tmp_path / "rows.csv"
+    with pytest.raises(SystemExit) as stop:
+        scale_cli.main(["--sizes", "5:5", "--seeds", "2", "--workers", "1", "--out", str(out), *argv])
+    assert stop.value.code == 2 and message in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_the_command_line_writes_one_row_per_diagnosis_and_a_table(tmp_path, capsys) -> None:
     out = tmp_path / "rows.csv"
     assert scale_cli.main(["--sizes", "5:5", "--seeds", "2", "--betas", "50", "10", "--conditions", "side_effects",

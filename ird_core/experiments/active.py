@@ -47,12 +47,13 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from ird_core import mdp, planning, posterior
+from ird_core.checks import check_int, check_real
 from ird_core.designer import queries
 from ird_core.designer.candidates import PlanSettings
 from ird_core.experiments import statistics
 from ird_core.experiments.trials import MAIN_BASELINE, QUICK, TrialSpec, trial_seed
 from ird_core.planning.sample_scale import SAMPLE_SCALES
-from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod
+from ird_core.vocabulary import STRATEGIES, PlanMode, ZMethod, parse
 from ird_core.worlds import evaluation, lavaland
 
 __all__ = [
@@ -177,8 +178,15 @@ class ActiveSpec:
                              "leave them unset (None) or choose chains='fixed'")
         if self.prior_sigma is not None and not (math.isfinite(self.prior_sigma) and self.prior_sigma > 0):
             raise ValueError(f"prior_sigma must be a finite number > 0 or None, got {self.prior_sigma!r}")
-        if self.condition not in lavaland.ALL_CONDITIONS:
-            raise ValueError(f"condition: expected one of {lavaland.ALL_CONDITIONS}, got {self.condition!r}")
+        lavaland.check_instance_arguments(self.condition, self.seed, self.size, self.horizon, self.obs_dim)
+        parse(ZMethod, self.method, "method")
+        check_real("beta", self.beta, positive=False)
+        posterior.ObservationModel(temperature=self.temperature)  # names temperature when out of range
+        for name, least in (("num_samples", 1), ("num_chains", 1), ("thin", 1)):
+            check_int(name, getattr(self, name), least)
+        for name, least in (("warmup", 0), ("max_leapfrog", 1), ("warm_warmup", 0)):
+            if getattr(self, name) is not None:
+                check_int(name, getattr(self, name), least)
         counts = tuple(self.query_counts)
         if not counts or any(not isinstance(c, (int, np.integer)) or c < 0 for c in counts) \
                 or list(counts) != sorted(set(counts)):

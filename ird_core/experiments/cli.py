@@ -282,12 +282,17 @@ def _shown_settings(args: argparse.Namespace, settings: dict[str, Any], conditio
 
 def run_experiment(args: argparse.Namespace, settings: dict[str, Any], conditions: list[str], command: str) -> int:
     """Run the trials of ``conditions`` with ``settings``, write the report into ``args.out``
-    and print Figure 4's table, the claim check and the wall time. Exit status 0, 2 on bad --trials."""
+    and print Figure 4's table, the claim check and the wall time. Exit status 0, 2 on bad --trials
+    or --seed."""
     trials = DEFAULT_TRIALS if args.trials is None else args.trials
     if trials < 1:
         print("--trials must be >= 1", file=sys.stderr)
         return 2
-    specs = make_specs(conditions, trials, args.seed, **settings)
+    try:
+        specs = make_specs(conditions, trials, args.seed, **settings)
+    except ValueError as exc:  # the settings passed trial_settings: a seed the trials cannot use
+        print(exc, file=sys.stderr)
+        return 2
     args.out.mkdir(parents=True, exist_ok=True)
     where = parallel.describe(args.workers, args.scheduler)
     print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), {where}", file=sys.stderr)

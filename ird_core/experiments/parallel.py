@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence, TypeVar
 from ird_core.experiments import progress as progress_bars
 from ird_core.experiments.journal import MISSING, Journal
 
-__all__ = ["BLAS_THREAD_VARIABLES", "TRIAL_FLAGS", "add_arguments", "add_trial_arguments", "describe", "progress_bar", "map_local",
+__all__ = ["BLAS_THREAD_VARIABLES", "TRIAL_FLAGS", "worker_count", "add_arguments", "add_trial_arguments", "describe", "progress_bar", "map_local",
            "map_dask", "parallel_map"]
 
 T = TypeVar("T")
@@ -36,9 +36,21 @@ TRIAL_FLAGS: tuple[tuple[str, type], ...] = (
     ("num_chains", int), ("warmup", int), ("thin", int), ("max_leapfrog", int))
 
 
+def worker_count(text: str) -> int:
+    """``--workers``' type: an integer >= 1 (argparse reports the ``ArgumentTypeError`` naming the
+    flag and exits with status 2)."""
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return count
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers W`` (local processes, default = cores) and ``--scheduler tcp://HOST:PORT``."""
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    """``--workers W`` (local processes, >= 1, default = cores) and ``--scheduler tcp://HOST:PORT``."""
+    parser.add_argument("--workers", type=worker_count, default=os.cpu_count() or 1)
     parser.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
 
 

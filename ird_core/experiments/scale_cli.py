@@ -90,10 +90,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds: expected >= 1, got {args.seeds}")
-    jobs = [(TrialSpec(condition=c, seed=args.seed + i, size=size, horizon=horizon, beta=beta, factorial=False,
-                       z_methods=(method,), novelty_feature=args.novelty_feature), method)
-            for c, (size, horizon), beta, method, i in itertools.product(
-                args.conditions, args.sizes, args.betas, args.methods, range(args.seeds))]
+    try:
+        jobs = [(TrialSpec(condition=c, seed=args.seed + i, size=size, horizon=horizon, beta=beta, factorial=False,
+                           z_methods=(method,), novelty_feature=args.novelty_feature), method)
+                for c, (size, horizon), beta, method, i in itertools.product(
+                    args.conditions, args.sizes, args.betas, args.methods, range(args.seeds))]
+    except ValueError as exc:  # a seed or beta the trials cannot use, named before any work
+        parser.error(str(exc))
     print(f"{len(jobs)} diagnoses, {describe(args.workers, args.scheduler)}", file=sys.stderr)
     rows = parallel_map(_run, jobs, args.workers, args.scheduler, desc="diagnoses")
     print(summary_table(rows))

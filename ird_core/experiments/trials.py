@@ -62,6 +62,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from ird_core import mcmc, mdp, planning, posterior
+from ird_core.checks import check_int, check_real
 from ird_core.experiments.controls import control_results, frontier_results
 from ird_core.experiments.trial_rows import TRIAL_COLUMNS, TrialResult, outcome
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES, HypothesisSpace
@@ -250,6 +251,14 @@ class TrialSpec:
         small=SamplerSettings(4, 50, 4, 16, 1000, check_every=CHECK_EVERY))
 
     def __post_init__(self) -> None:
+        if self.world:
+            check_int("seed", self.seed, 0)  # a world file's trial: the file gives map, horizon and features
+        else:
+            lavaland.check_instance_arguments(self.condition, self.seed, self.size, self.horizon, self.obs_dim)
+        check_int("num_samples", self.num_samples, 1)
+        check_int("num_proxy_samples", self.num_proxy_samples, 1)
+        check_real("beta", self.beta, positive=False)
+        SamplerSettings(self.num_chains, self.warmup, self.thin, self.max_leapfrog)  # names the bad field
         if self.prior_sigma is not None and not (math.isfinite(self.prior_sigma) and self.prior_sigma > 0):
             raise ValueError(f"prior_sigma must be a finite number > 0 or None, got {self.prior_sigma!r}")
         if not 1 <= self.factorial_samples <= self.num_samples:

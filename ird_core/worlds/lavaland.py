@@ -129,6 +129,7 @@ __all__ = [
     "FILE_CONDITION",
     "TrainingWorld",
     "LavalandInstance",
+    "check_instance_arguments",
     "make_instance",
     "train_mdp",
     "test_mdp",
@@ -345,15 +346,22 @@ class _Features(NamedTuple):
     test_labels: np.ndarray
 
 
-def _check_instance_arguments(condition: str, seed: int, horizon: int) -> Condition:
-    """``condition`` as a :class:`Condition`, ``seed`` >= 0 and ``horizon`` >= 1 checked."""
+def check_instance_arguments(condition: str, seed: int, size: "int | tuple[int, int]", horizon: int,
+                             obs_dim: int) -> tuple[Condition, int, int]:
+    """:func:`make_instance`'s arguments checked before any work: ``condition`` as a
+    :class:`Condition` and the map's ``(height, width)``; ``ValueError`` naming the field when
+    ``condition`` is unknown, ``seed`` is not a non-negative int, ``size`` is below 3x3,
+    ``horizon`` is below 1 or ``obs_dim`` below 3 (every condition, used or not)."""
     if condition not in ALL_CONDITIONS:
         raise ValueError(f"condition must be one of {ALL_CONDITIONS}, got {condition!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+    height, width = _map_size(size)
     if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
         raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
-    return Condition(condition)
+    if isinstance(obs_dim, bool) or not isinstance(obs_dim, (int, np.integer)) or obs_dim < 3:
+        raise ValueError(f"obs_dim must be an integer >= 3, got {obs_dim!r}")
+    return Condition(condition), height, width
 
 
 def _sample_maps(streams: _Streams, train_map: MapConfig, test_map: MapConfig, horizon: int) -> _Maps:
@@ -438,9 +446,11 @@ def make_instance(
 
     Returns:
         The :class:`LavalandInstance`.
+
+    Raises:
+        ValueError: naming the argument (:func:`check_instance_arguments`), before any work.
     """
-    kind = _check_instance_arguments(condition, seed, horizon)
-    height, width = _map_size(size)
+    kind, height, width = check_instance_arguments(condition, seed, size, horizon, obs_dim)
     streams = _Streams(*np.random.SeedSequence(int(seed)).spawn(9))  # the first 8 children equal spawn(8)'s
     maps = _sample_maps(streams, dataclasses.replace(train_map, height=height, width=width),
                         dataclasses.replace(test_map, height=height, width=width), horizon)
