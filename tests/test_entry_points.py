@@ -15,6 +15,7 @@ from typing import Callable
 
 import pytest
 
+from ird_core.experiments import posterior_terrain
 from ird_ros.apps import analyze_bag, call_inference, demo, experiments, launch_graph, reindex_bag
 from ird_ros.graph.domains import domain_banner
 
@@ -63,6 +64,37 @@ def test_launch_graph_refuses_bad_mission_options(argv: list[str], message: str,
     with pytest.raises(SystemExit) as info:
         launch_graph.main(argv)
     assert info.value.code == 2 and message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--seed", "-1"], "argument --seed: expected an integer in [0, 4294967295], got '-1'"),
+    (["--num-samples", "0"], "argument --num-samples: expected an integer in [1, 4294967295], got '0'"),
+    (["--beta", "nan"], "argument --beta: expected a finite number >= 0, got 'nan'"),
+    (["--timeout", "-1"], "argument --timeout: expected a finite number > 0, got '-1'"),
+    (["--designer-temperature", "0.0001"],
+     "argument --designer-temperature: expected 0 or a number in [0.001, 1000], got '0.0001'"),
+    (["--risk-level", "inf"], "argument --risk-level: expected a finite number >= 0, got 'inf'"),
+])
+def test_call_inference_refuses_a_bad_option_before_looking_for_a_graph(
+        argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Refused by the parser (status 2), before the client node exists: a negative seed was a
+    numpy traceback, a negative timeout a search "within -1 s", NaN ones searched forever."""
+    with pytest.raises(SystemExit) as info:
+        call_inference.parse_args(argv)
+    assert info.value.code == 2 and message in capsys.readouterr().err
+    args = call_inference.parse_args(["--designer-temperature", "0", "--seed", "4294967295"])
+    assert (args.designer_temperature, args.seed) == (0.0, 4294967295)
+
+
+@pytest.mark.parametrize("argv,message", [(["--seed", "-3"], "seed must be a non-negative int, got -3"),
+                                          (["--beta", "nan"], "beta: expected a finite number >= 0, got nan"),
+                                          (["--samples", "0"], "samples: expected an integer >= 1, got 0")])
+def test_plot_posterior_terrain_refuses_a_bad_argument_before_sampling(
+        tmp_path: Path, argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        posterior_terrain.main([str(tmp_path / "out.png"), *argv])
+    assert info.value.code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "out.png").exists()
 
 
 def test_launch_graph_hypothesis_options_reach_the_world_node_only() -> None:

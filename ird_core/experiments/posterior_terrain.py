@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ird_core import posterior, style
+from ird_core.checks import check_int, check_real
 from ird_core.experiments.progress import step_progress
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
@@ -114,15 +115,19 @@ def plot_spreads(result: Any, instance: lavaland.LavalandInstance, beta: float, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Sample, print the spreads and write the figure; exit status 0."""
+    """Sample, print the spreads and write the figure; exit status 0, 2 on a bad argument."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("output", nargs="?", default="out/posterior_terrain.png")
     parser.add_argument("--seed", type=int, default=0, help="Lavaland instance and sampler seed")
     parser.add_argument("--beta", type=float, default=1.0)
     parser.add_argument("--samples", type=int, default=1000)
     args = parser.parse_args(argv)
-
-    instance = lavaland.make_instance("latent_raw", args.seed)
+    try:  # every argument checked before the sampler starts: argparse's status 2, naming it
+        check_real("beta", args.beta, positive=False)
+        check_int("samples", args.samples, 1)
+        instance = lavaland.make_instance("latent_raw", args.seed)
+    except ValueError as exc:
+        parser.error(str(exc))
     start = time.perf_counter()
     with step_progress("maxent_z MCMC") as progress:
         result = posterior.sample_posterior(

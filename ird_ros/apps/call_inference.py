@@ -22,6 +22,7 @@ measure it used (docs/spec.md section 4).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
@@ -45,22 +46,61 @@ def generated_request(seed: int) -> Any:
     return infer_request(training_map, (0, 0), 10, proxy_weights, beta=0.0, method="", num_samples=0, seed=0)
 
 
+#: The largest value of the request's ``uint32`` fields (num_samples, seed).
+_UINT32_MAX = 2**32 - 1
+
+
+def _whole(low: int):
+    """argparse type: an integer in ``[low, 2^32 - 1]`` (the request's uint32 fields)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if not low <= value <= _UINT32_MAX:
+            raise argparse.ArgumentTypeError(f"expected an integer in [{low}, {_UINT32_MAX}], got {text!r}")
+        return value
+    return parse
+
+
+def _real(low: float, positive: bool = False, zero_or_in: "tuple[float, float] | None" = None):
+    """argparse type: a finite number ``>= low`` (``> low`` if ``positive``), or with
+    ``zero_or_in`` 0 or a number in that closed range."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if zero_or_in is not None:
+            ok = value == 0.0 or zero_or_in[0] <= value <= zero_or_in[1]
+            want = f"0 or a number in [{zero_or_in[0]:g}, {zero_or_in[1]:g}]"
+        else:
+            ok = math.isfinite(value) and (value > low if positive else value >= low)
+            want = f"a finite number {'>' if positive else '>='} {low:g}"
+        if not ok:
+            raise argparse.ArgumentTypeError(f"expected {want}, got {text!r}")
+        return value
+    return parse
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The options, each checked before the client looks for a graph (argparse exits with status
+    2 naming the option)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--from-world", action="store_true", help="use the world node's request (/world/infer_request)")
     parser.add_argument("--method", default="maxent_z", choices=METHODS, help="the posterior's approximation")
-    parser.add_argument("--beta", type=float, default=10.0, help="designer rationality (default 10)")
-    parser.add_argument("--num-samples", type=int, default=200, help="posterior samples (default 200)")
-    parser.add_argument("--seed", type=int, default=0, help="sampler seed (and the generated map's)")
+    parser.add_argument("--beta", type=_real(0.0), default=10.0, help="designer rationality (default 10)")
+    parser.add_argument("--num-samples", type=_whole(1), default=200, help="posterior samples (default 200)")
+    parser.add_argument("--seed", type=_whole(0), default=0, help="sampler seed (and the generated map's)")
     parser.add_argument("--proxy-counts", default="", choices=("", *PROXY_COUNTS),
                         help="observation model: the proxy's optimal-path or MaxEnt counts (default: the node's)")
-    parser.add_argument("--designer-temperature", type=float, default=0.0,
+    parser.add_argument("--designer-temperature", type=_real(0.0, zero_or_in=(0.001, 1000.0)), default=0.0,
                         help="MaxEnt designer's temperature in [0.001, 1000] (default 0: the node's)")
     parser.add_argument("--risk", default=None, choices=("", *RISK_MEASURES),
                         help="then plan on the posterior with this risk measure (\"\": the planner's default)")
-    parser.add_argument("--risk-level", type=float, default=0.0,
+    parser.add_argument("--risk-level", type=_real(0.0), default=0.0,
                         help="cvar's alpha in (0, 1] or mean_sd's lambda in [0, 100] (default 0: none)")
-    parser.add_argument("--timeout", type=float, default=120.0,
+    parser.add_argument("--timeout", type=_real(0.0, positive=True), default=120.0,
                         help="seconds for discovery and for the answer (default 120); with no graph in "
                              "ROS_DOMAIN_ID by then, exit 1 naming the domain")
     return parser.parse_args(argv)
