@@ -150,24 +150,29 @@ def test_call_inference_prints_the_posterior(inference: NodeProcess, capsys: pyt
 
 def test_call_inference_passes_the_observation_model(inference: NodeProcess,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    """--proxy-counts / --designer-temperature reach /ird/infer: the posterior records them; an
-    temperature out of range is refused by the node, naming the field."""
+    """--proxy-counts / --designer-temperature reach /ird/infer: the posterior records them; a
+    temperature out of range is refused by the client before it asks (status 2, naming the option)
+    and, sent anyway, by the node (``test_refusal_from_the_node_names_the_field``)."""
     assert call_inference.main(["--num-samples", "8", "--beta", "2", "--timeout", "60",
                                 "--proxy-counts", "maxent", "--designer-temperature", "0.5"]) == 0
     assert "observation model: maxent proxy counts, designer temperature 0.5" in capsys.readouterr().out
     assert call_inference.main(["--num-samples", "8", "--beta", "2", "--timeout", "60",
                                 "--proxy-counts", "optimal"]) == 0
     assert "observation model: optimal proxy counts\n" in capsys.readouterr().out
-    assert call_inference.main(["--num-samples", "8", "--timeout", "60", "--designer-temperature", "-2"]) == 1
-    assert "designer_temperature: " in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:
+        call_inference.main(["--num-samples", "8", "--timeout", "60", "--designer-temperature", "-2"])
+    assert refused.value.code == 2 and "argument --designer-temperature" in capsys.readouterr().err
 
 
-def test_refusal_from_the_node_names_the_field(inference: NodeProcess, ros_ctx: Any) -> None:
+@pytest.mark.parametrize("field, value", [("beta", -1.0), ("designer_temperature", -2.0)])
+def test_refusal_from_the_node_names_the_field(inference: NodeProcess, ros_ctx: Any, field: str,
+                                               value: float) -> None:
     request = call_inference.generated_request(0)
-    request.beta, request.method, request.num_samples = -1.0, "maxent_z", 4
+    request.beta, request.method, request.num_samples = 2.0, "maxent_z", 4
+    setattr(request, field, value)
     with IrdClient(context=ros_ctx, node_name="refusal_client", processes=[inference]) as ird:
         result = ird.infer(request, timeout=60.0)
-    assert result.status is CallStatus.REFUSED and result.field == "beta", result
+    assert result.status is CallStatus.REFUSED and result.field == field, result
     assert result.value is None and not result.response.success
 
 
