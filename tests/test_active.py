@@ -184,15 +184,8 @@ def test_endpoints_on_hand_made_results() -> None:
 
 
 @pytest.mark.timeout(600)
-def test_chunks_merge_into_the_report_of_one_run(tmp_path) -> None:
-    single, merged = tmp_path / "single", tmp_path / "merged"
-    common = ["--workers", "1", "--conditions", "side_effects", *TINY_ARGS]
-    assert active_cli.main(["--trials", "2", "--out", str(single), *common]) == 0
-    chunks = [tmp_path / "a", tmp_path / "b"]
-    assert active_cli.main(["--trials", "1", "--seed", "0", "--out", str(chunks[0]), *common]) == 0
-    assert active_cli.main(["--trials", "1", "--seed", "1", "--out", str(chunks[1]), *common]) == 0
-    assert active_cli.main(["--report-only", "--out", str(merged), "--merge", *map(str, chunks)]) == 0
-
+def _assert_same_rows(merged, single) -> None:
+    """``active.csv`` of ``merged`` is ``single``'s, row for row (numbers to float precision)."""
     def rows(path):
         with (path / "active.csv").open() as fh:
             return list(csv.DictReader(fh))
@@ -203,10 +196,35 @@ def test_chunks_merge_into_the_report_of_one_run(tmp_path) -> None:
                 assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-5, abs=1e-9, nan_ok=True), key
             except ValueError:
                 assert a[key] == b[key]
+
+
+def test_chunks_merge_into_the_report_of_one_run(tmp_path) -> None:
+    single, merged = tmp_path / "single", tmp_path / "merged"
+    common = ["--workers", "1", "--conditions", "side_effects", *TINY_ARGS]
+    assert active_cli.main(["--trials", "2", "--out", str(single), *common]) == 0
+    chunks = [tmp_path / "a", tmp_path / "b"]
+    assert active_cli.main(["--trials", "1", "--seed", "0", "--out", str(chunks[0]), *common]) == 0
+    assert active_cli.main(["--trials", "1", "--seed", "1", "--out", str(chunks[1]), *common]) == 0
+    assert active_cli.main(["--report-only", "--out", str(merged), "--merge", *map(str, chunks)]) == 0
+    _assert_same_rows(merged, single)
     text = (merged / "active.md").read_text()
     assert "seed=0..1 in 2 chunks" in text and "trials=2" in text
     # Chunks that share a seed are refused.
     assert active_cli.main(["--report-only", "--out", str(merged), "--merge", str(chunks[0]), str(chunks[0])]) == 2
+
+
+def test_chunks_of_other_conditions_merge_into_the_report_of_one_run(tmp_path) -> None:
+    """One condition per chunk (e.g. a slow condition on its own machine) merges into the report
+    of one run over both conditions, conditions in the chunks' order."""
+    single, merged = tmp_path / "single", tmp_path / "merged"
+    common = ["--trials", "1", "--workers", "1", *TINY_ARGS]
+    assert active_cli.main(["--out", str(single), "--conditions", "side_effects", "pot_of_gold", *common]) == 0
+    chunks = [tmp_path / "side", tmp_path / "gold"]
+    for chunk, condition in zip(chunks, ("side_effects", "pot_of_gold")):
+        assert active_cli.main(["--out", str(chunk), "--conditions", condition, *common]) == 0
+    assert active_cli.main(["--report-only", "--out", str(merged), "--merge", *map(str, chunks)]) == 0
+    _assert_same_rows(merged, single)
+    assert "trials=1, seed=0..0 in 2 chunks" in (merged / "active.md").read_text()
 
 
 def test_the_chains_follow_the_weight_space_size_unless_the_spec_sets_them() -> None:
