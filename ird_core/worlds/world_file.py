@@ -71,8 +71,10 @@ nodes' ``max_map_values``); every horizon in [1, ``MAX_HORIZON``] (the nodes' ``
 and ``(T + 1) * H * W`` at most ``MAX_PLAN_WORK`` (the planner's ``max_plan_work`` for one
 sample); the origin's yaw 0 (the grids are axis-aligned) and ``resolution`` in
 ``RESOLUTION_RANGE``; at most ``MAX_TERRAINS`` terrains, ``MAX_FEATURES`` features and
-``MAX_TRAINING_WORLDS`` training worlds; feature values and proxy weights within
-:data:`ird_core.checks.MAX_ABS_FEATURE` and :data:`ird_core.checks.MAX_ABS_WEIGHT`; seeds in
+``MAX_TRAINING_WORLDS`` training worlds; feature values within
+:data:`ird_core.checks.MAX_ABS_FEATURE`, proxy weights and true rewards within
+:data:`ird_core.checks.MAX_ABS_WEIGHT` (a true reward is a per-cell weight: it scales the
+returns the evaluation and the simulated designer compute as a weight does); seeds in
 [0, 2**32 - 1]. So a world that loads is one the graph's services accept with their default
 limits.
 
@@ -165,7 +167,8 @@ def _legend(ctx: FileErrors, raw: Any) -> tuple[list[dict], list[int], tuple[str
     if all(given):
         reward = np.concatenate([lavaland.TRUE_TERRAIN_REWARD, np.zeros(len(custom))])
         for i, (entry, label) in enumerate(zip(raw, labels)):
-            reward[label] = read_vector(ctx, [entry["true_reward"]], f"terrains[{i}].true_reward", 1)[0]
+            reward[label] = read_vector(ctx, [entry["true_reward"]], f"terrains[{i}].true_reward", 1,
+                                        MAX_ABS_WEIGHT)[0]
         reward.setflags(write=False)
     return raw, labels, terrain_names, reward
 

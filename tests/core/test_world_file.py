@@ -88,6 +88,8 @@ BAD_FILES = [
     (lambda d: _set(d, [300, 0, 0], "terrains", 2, "colour"), ["terrains[2].colour", "[300, 0, 0]"]),
     (lambda d: _set(d, "dirt", "terrains", 3, "name"), ["terrains[3].name", "'dirt'"]),
     (lambda d: _drop(d, "terrains", 2, "true_reward"), ["terrains[2].true_reward: missing"]),
+    (lambda d: _set(d, 1e300, "terrains", 3, "true_reward"),
+     ["terrains[3].true_reward: has a value of magnitude above the limit 10000"]),
     (lambda d: _set(d, {"type": "fancy"}, "features"), ["features.type", "fancy"]),
     (lambda d: _set(d, "classifier", "proxy_features"), ["proxy_features", "classifier"]),
     (lambda d: _set(d, {"type": "vectors", "names": ["a", "a"]}, "features"), ["features.names", "['a', 'a']"]),
