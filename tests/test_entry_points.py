@@ -55,12 +55,18 @@ def test_launch_graph_help_documents_the_mission_and_the_attach_line() -> None:
 
 
 @pytest.mark.parametrize("argv,message", [
+    (["--timeout", "-5"], "argument --timeout: expected seconds > 0, got '-5'"),
+    (["--timeout", "0"], "argument --timeout: expected seconds > 0, got '0'"),
+    (["--run-for", "nan"], "argument --run-for: expected seconds >= 0, got 'nan'"),
+    (["--run-for", "-1"], "argument --run-for: expected seconds >= 0, got '-1'"),
     (["--mission-then-exit"], "only with --mission"),
     (["--mission", "0"], "N must be >= 1"),
     (["--mission", "--nodes", "world,inference"], "needs the world and navigator nodes"),
 ])
-def test_launch_graph_refuses_bad_mission_options(argv: list[str], message: str,
-                                                  capsys: pytest.CaptureFixture[str]) -> None:
+def test_launch_graph_refuses_bad_options_before_starting_a_node(argv: list[str], message: str,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """Refused before any node starts (a negative --timeout started the graph to report it "not
+    ready after -5 s"; --run-for nan never stopped it)."""
     with pytest.raises(SystemExit) as info:
         launch_graph.main(argv)
     assert info.value.code == 2 and message in capsys.readouterr().err

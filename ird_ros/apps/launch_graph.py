@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
 import signal
 import sys
@@ -107,6 +108,20 @@ def _csv(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
+def _seconds(zero: bool):
+    """argparse type: finite seconds ``> 0``, or ``>= 0`` with ``zero`` (``--run-for 0``: stop once
+    ready); a bad value is status 2 naming the option, before any node starts."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
+            raise argparse.ArgumentTypeError(f"expected seconds {'>=' if zero else '>'} 0, got {text!r}")
+        return value
+    return parse
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line (every option documented in ``--help``)."""
     first, rest = __doc__.split("\n\n", 1)  # the usage line once (description), the rest as epilog
@@ -132,8 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--respawn-delay", type=float, default=None, help="seconds before a restart (default: params file, else 1.0)")
     parser.add_argument("--respawn-max-retries", type=int, default=None, metavar="N",
                         help="restarts of one node before giving up on it, -1 for no limit (default: params file, else 5)")
-    parser.add_argument("--timeout", type=float, default=90.0, help="seconds to wait for readiness (default 90)")
-    parser.add_argument("--run-for", type=float, default=None, help="stop after this many seconds of being ready")
+    parser.add_argument("--timeout", type=_seconds(zero=False), default=90.0, help="seconds to wait for readiness (default 90)")
+    parser.add_argument("--run-for", type=_seconds(zero=True), default=None, help="stop after this many seconds of being ready")
     parser.add_argument("--output", choices=[m.value for m in OutputMode], default=OutputMode.PREFIX.value,
                         help="nodes' output: prefix (printed as [node] line), quiet (shown on errors), "
                              "files (<log-dir>/<node>.log)")
