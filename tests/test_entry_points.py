@@ -103,6 +103,21 @@ def test_plot_posterior_terrain_refuses_a_bad_argument_before_sampling(
     assert not (tmp_path / "out.png").exists()
 
 
+@pytest.mark.parametrize("argv,message", [
+    (["--rate", "0"], "--rate: must be in 0.01..1000 cells per second, got 0.0"),
+    (["--rate", "nan"], "--rate: must be in 0.01..1000 cells per second, got nan"),
+    (["--designer-beta", "inf"], "--designer-beta: must be a finite number >= 0, got inf"),
+])
+def test_demo_refuses_a_bad_rate_or_designer_beta_before_the_graph_starts(
+        argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--rate 0`` started the graph for the rob node to refuse its ``rate_hz``; the range is the
+    node's own declaration."""
+    with pytest.raises(SystemExit) as info:
+        demo.parse_args(argv)
+    assert info.value.code == 2 and message in capsys.readouterr().err
+    assert demo.parse_args(["--rate", "0.01"]).rate == 0.01
+
+
 def test_launch_graph_hypothesis_options_reach_the_world_node_only() -> None:
     parser = launch_graph.build_parser()
     assert launch_graph._node_table(parser.parse_args([])) is None  # the params file's space

@@ -48,6 +48,7 @@ import dataclasses
 import datetime as dt
 import itertools
 import json
+import math
 import multiprocessing
 import multiprocessing.pool
 import os
@@ -126,6 +127,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f"--port: must be in 1..65535, got {args.port}")
     if args.viz_port is not None and not (args.viz and 0 <= args.viz_port <= 65535):
         p.error(f"--viz-port: needs --viz and a port in 0..65535 (0 = any free port), got {args.viz_port}")
+    from ird_ros.nodes.rob import PARAMETERS as ROB  # the rob node's own range, checked before it starts
+    rate = ROB["rate_hz"]
+    if not (math.isfinite(args.rate) and rate.min_value <= args.rate <= rate.max_value):
+        p.error(f"--rate: must be in {rate.min_value:g}..{rate.max_value:g} cells per second, got {args.rate}")
+    if not (math.isfinite(args.designer_beta) and args.designer_beta >= 0):
+        p.error(f"--designer-beta: must be a finite number >= 0, got {args.designer_beta}")
     return args
 
 
