@@ -38,9 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         inst = lavaland.make_instance(args.condition, args.seed, size=args.size, horizon=args.horizon,
                                       obs_dim=args.obs_dim)
+        path = world_file.export_instance(inst, args.out, args.name or f"{args.condition}_{args.seed}")
     except ValueError as exc:
         parser.error(str(exc))
-    path = world_file.export_instance(inst, args.out, args.name or f"{args.condition}_{args.seed}")
     world_file.load_world(path)  # what was written must load
     print(path)
     return 0

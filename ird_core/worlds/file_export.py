@@ -13,6 +13,7 @@ from PIL import Image
 
 from ird_core.vocabulary import Condition
 from ird_core.worlds import lavaland
+from ird_core.worlds.file_values import MAX_NAME_LENGTH
 from ird_core.worlds.terrain import NUM_TERRAINS, SAFE_TERRAINS, TERRAIN_COLORS, TERRAIN_NAMES, Terrain
 
 __all__ = ["write_image", "export_instance"]
@@ -43,7 +44,18 @@ def export_instance(instance: lavaland.LavalandInstance, directory: str | os.Pat
 
     Returns:
         The YAML path.
+
+    Raises:
+        ValueError: naming ``name`` unless it is a plain file stem (printable, 1 to
+            ``MAX_NAME_LENGTH`` characters, no path separator, not ``.`` or ``..``: the files stay in
+            ``directory``), or ``instance.condition`` for an instance Lavaland did not generate;
+            before anything is written.
     """
+    separators = {"/", "\\", os.sep, os.altsep} - {None}
+    if (not isinstance(name, str) or not name or len(name) > MAX_NAME_LENGTH or not name.isprintable()
+            or any(sep in name for sep in separators) or name in (".", "..")):
+        raise ValueError(f"name: must be a file stem of 1 to {MAX_NAME_LENGTH} printable characters without a "
+                         f"path separator (the files stay in the output directory), got {name!r}")
     condition = instance.condition
     if condition not in lavaland.ALL_CONDITIONS:
         raise ValueError(f"instance.condition: only generated Lavaland instances can be exported, got {condition!r}")

@@ -200,6 +200,18 @@ def _plans(inst: lavaland.LavalandInstance, samples: np.ndarray):
     return literal.cells, ird.cells
 
 
+@pytest.mark.parametrize("name", ["../escape", "sub/dir", "back\\slash", ".", "..", "", "x" * 65, "tab\there"])
+def test_an_export_name_that_is_not_a_file_stem_is_refused_before_anything_is_written(tmp_path: Path,
+                                                                                       name: str) -> None:
+    """``--name ../../evil`` wrote the world outside ``--out`` (found by a hostile-input pass)."""
+    out = tmp_path / "out" / "deeper"
+    instance = lavaland.make_instance("side_effects", 0, size=5, horizon=5)
+    with pytest.raises(ValueError, match="^name: must be a file stem"):
+        world_file.export_instance(instance, out, name)
+    assert not (tmp_path / "out").exists() and sorted(p.name for p in tmp_path.iterdir()) == []
+    assert world_file.export_instance(instance, out, "x" * 64).parent == out
+
+
 @pytest.mark.parametrize("condition", lavaland.ALL_CONDITIONS)
 def test_lavaland_round_trip(tmp_path: Path, condition: str) -> None:
     original = lavaland.make_instance(condition, 11, size=6, horizon=6, obs_dim=4)
