@@ -133,12 +133,14 @@ def test_every_topic_for_every_condition(condition: str, probe: Probe) -> None:
 
 def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
     ros_node = probe.node
+    mark = probe.mark()  # since marks: another test may have published the same generation earlier
     first = probe.generate("latent_raw", 1)
     assert first.ok, first.message
-    a = probe.messages("latent_raw", 1)
+    a = probe.messages("latent_raw", 1, since=mark)
+    mark = probe.mark()
     second = probe.generate("", 2)  # empty condition: keep latent_raw
     assert second.ok, second.message
-    b = probe.messages("latent_raw", 2)
+    b = probe.messages("latent_raw", 2, since=mark)
     for topic in (names.TOPIC_TRAIN_FEATURES, names.TOPIC_TEST_FEATURES):
         fa, fb = (conv.feature_grid_from_msg(m[topic]).features for m in (a, b))
         assert fa.shape == fb.shape and not np.array_equal(fa, fb), topic
@@ -156,8 +158,9 @@ def test_generate_changes_the_maps(probe: Probe, world: NodeProcess) -> None:
 def test_generate_publishes_one_generation(probe: Probe) -> None:
     """/world/generate that changes condition and seed publishes that world once: setting the
     parameters to it afterwards must not publish the half-changed pair in between."""
+    before = probe.mark()  # an earlier test published latent_raw/1 too: wait for this test's own
     assert probe.generate("latent_raw", 1).ok
-    probe.messages("latent_raw", 1)
+    probe.messages("latent_raw", 1, since=before)
     mark = probe.mark()
     assert probe.generate("reward_hacking", 5).ok
     assert probe.generate("side_effects", 7).ok
@@ -167,9 +170,10 @@ def test_generate_publishes_one_generation(probe: Probe) -> None:
 
 
 def test_bad_condition_is_rejected(probe: Probe, ros_node: Any, world: NodeProcess) -> None:
+    mark = probe.mark()  # test_generate_publishes_one_generation published reward_hacking/5 too
     ok = probe.generate("reward_hacking", 5)
     assert ok.ok, ok.message
-    before = probe.messages("reward_hacking", 5)[names.TOPIC_PROXY]
+    before = probe.messages("reward_hacking", 5, since=mark)[names.TOPIC_PROXY]
     for bad in ("lava_land", "SIDE_EFFECTS", " side_effects", "x" * 300):
         response = probe.generate(bad, 6)
         assert not response.ok, bad
