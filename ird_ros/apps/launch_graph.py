@@ -61,7 +61,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import math
 import os
 import signal
 import sys
@@ -71,6 +70,7 @@ from pathlib import Path
 
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, HypothesisSpace
 from ird_core.worlds.world_file import load_world_file
+from ird_ros.arg_types import seconds, seconds_or_zero
 from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec, names
 from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
@@ -108,20 +108,6 @@ def _csv(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
-def _seconds(zero: bool):
-    """argparse type: finite seconds ``> 0``, or ``>= 0`` with ``zero`` (``--run-for 0``: stop once
-    ready); a bad value is status 2 naming the option, before any node starts."""
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
-            raise argparse.ArgumentTypeError(f"expected seconds {'>=' if zero else '>'} 0, got {text!r}")
-        return value
-    return parse
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The command line (every option documented in ``--help``)."""
     first, rest = __doc__.split("\n\n", 1)  # the usage line once (description), the rest as epilog
@@ -147,8 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--respawn-delay", type=float, default=None, help="seconds before a restart (default: params file, else 1.0)")
     parser.add_argument("--respawn-max-retries", type=int, default=None, metavar="N",
                         help="restarts of one node before giving up on it, -1 for no limit (default: params file, else 5)")
-    parser.add_argument("--timeout", type=_seconds(zero=False), default=90.0, help="seconds to wait for readiness (default 90)")
-    parser.add_argument("--run-for", type=_seconds(zero=True), default=None, help="stop after this many seconds of being ready")
+    parser.add_argument("--timeout", type=seconds, default=90.0, help="seconds to wait for readiness (default 90)")
+    parser.add_argument("--run-for", type=seconds_or_zero, default=None, help="stop after this many seconds of being ready")
     parser.add_argument("--output", choices=[m.value for m in OutputMode], default=OutputMode.PREFIX.value,
                         help="nodes' output: prefix (printed as [node] line), quiet (shown on errors), "
                              "files (<log-dir>/<node>.log)")

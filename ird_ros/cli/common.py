@@ -14,6 +14,7 @@ import signal
 import sys
 from typing import Any, Iterator, NoReturn
 
+from ird_ros.arg_types import seconds, seconds_or_zero
 from ird_ros.graph.domains import DOMAIN_ID_MAX, check_domain_id, domain_banner
 
 __all__ = [
@@ -61,29 +62,9 @@ def _domain_id(text: str) -> int:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("--domain-id ")) from None
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected seconds > 0, got {text!r}")
-    return value
-
-
-def _quiet_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
-    return value
-
-
 def add_spin_time(parser: argparse.ArgumentParser, what: str) -> None:
     """``--spin-time S``: seconds without a change before the view of the graph counts as complete."""
-    parser.add_argument("--spin-time", type=_quiet_seconds, default=0.5, metavar="S",
+    parser.add_argument("--spin-time", type=seconds_or_zero, default=0.5, metavar="S",
                         help=f"seconds without a change in the graph before {what} (default 0.5)")
 
 
@@ -94,7 +75,7 @@ def add_domain_options(parser: argparse.ArgumentParser, *, timeout: float | None
                              "(default: ROS_DOMAIN_ID, else 0)")
     if timeout is None:
         return
-    parser.add_argument("--timeout", type=_seconds, default=timeout, metavar="S",
+    parser.add_argument("--timeout", type=seconds, default=timeout, metavar="S",
                         help=f"seconds to discover the graph before giving up with exit 1 (default {timeout:g})")
 
 
