@@ -77,7 +77,7 @@ def test_an_answering_probe_is_kept() -> None:
 
 
 STUCK_STOP = """
-import signal, sys, threading
+import os, select, signal, sys, threading
 from ird_ros.launch import launcher as L
 from ird_ros.graph.nodes import NodeSpec
 
@@ -90,9 +90,17 @@ L.Supervisor = StuckSupervisor
 spec = NodeSpec(name="sleeper", module="unused", script={script!r})
 graph = L.GraphLauncher(nodes=["sleeper"], specs=[spec], private_domain=True, output="quiet")
 graph.start()
-print("child", graph.pids()["sleeper"], flush=True)
+# Wait for SIGINT without a race: Python's C handler writes to the wakeup pipe whichever thread the
+# kernel delivers SIGINT to, and a SIGINT that arrives before select() leaves its byte there
+# (signal.pause() blocked forever when SIGINT came just before it or went to another thread).
+wake_r, wake_w = os.pipe()
+os.set_blocking(wake_w, False)
+signal.set_wakeup_fd(wake_w)
 try:
-    signal.pause()
+    print("child", graph.pids()["sleeper"], flush=True)
+    while True:  # KeyboardInterrupt is raised once select() returns
+        select.select([wake_r], [], [])
+        os.read(wake_r, 64)
 except KeyboardInterrupt:
     graph.stop()
 """
