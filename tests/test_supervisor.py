@@ -61,6 +61,18 @@ while True:
 """
 
 
+# Ends on its first SIGINT (KeyboardInterrupt, uncaught: returncode -SIGINT), also when SIGINT comes
+# before it waits: the C handler leaves a byte in the wakeup pipe (signal.pause() would block on).
+POLITE = """
+import os, select, signal
+wake_r, wake_w = os.pipe()
+os.set_blocking(wake_w, False)
+signal.set_wakeup_fd(wake_w)
+print("up", flush=True)
+while True:
+    select.select([wake_r], [], [])
+"""
+
 def py(code: str) -> tuple[str, ...]:
     return (sys.executable, "-c", code)
 
@@ -109,7 +121,7 @@ def test_stop_escalates_sigint_sigterm_sigkill_on_schedule(make) -> None:
 
 
 def test_a_child_that_ends_on_sigint_gets_no_further_signal(make) -> None:
-    sup = make(ProcessSpec("polite", py("import signal; print('up', flush=True); signal.pause()")))
+    sup = make(ProcessSpec("polite", py(POLITE)))
     sup.wait_for_output("polite", "up", timeout=30)
     sup.stop_processes(["polite"], sigterm_timeout=5.0, sigkill_timeout=5.0)
     sent = [e.signal for e in sup.events() if isinstance(e, SignalSent)]
