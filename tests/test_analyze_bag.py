@@ -307,7 +307,16 @@ def test_cli_rejects_an_unfinished_bag(tmp_path: Path, capsys: pytest.CaptureFix
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "broken.mcap").write_bytes(b"\x89MCAP0\r\n")  # what a SIGKILLed writer leaves
     assert analyze_bag_app.main([str(tmp_path / "broken")]) == 1
-    assert "metadata.yaml" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "metadata.yaml" in err and "ird-reindex-bag" in err
+
+
+@pytest.mark.parametrize(("name", "said"), [("nowhere", "does not exist"), ("notes.txt", "is not a folder")])
+def test_cli_names_what_is_not_a_bag(tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str, said: str) -> None:
+    (tmp_path / "notes.txt").write_text("not a bag")
+    assert analyze_bag_app.main([str(tmp_path / name), "--no-plots"]) == 1
+    assert capsys.readouterr().err == f"error: {tmp_path / name} {said}" + (
+        " (BAG is the rosbag2 folder, or the .mcap file in it)\n" if name == "notes.txt" else "\n")
 
 
 def test_a_bag_without_missions_says_so_and_draws_no_trajectories(tmp_path: Path,
@@ -418,6 +427,9 @@ def test_a_cancelled_drive_shows_as_cancelled_and_a_drive_that_stayed_put_says_s
     lines = capsys.readouterr().out.splitlines()
     assert any(" cancelled " in line and line.lstrip().split()[1] == "cancelled" for line in lines)
     assert any(line.rstrip().endswith("stayed put") for line in lines)
+    [mcap] = (tmp_path / "drives").glob("*.mcap")  # the bag's file names the same bag
+    assert analyze_bag_app.main([str(mcap), "--no-plots"]) == 0
+    assert capsys.readouterr().out.splitlines() == lines
 
 
 def test_drive_outcome_names_what_rob_did() -> None:

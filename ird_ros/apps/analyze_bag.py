@@ -2,7 +2,7 @@
 
     ird-analyze-bag BAG [--out DIR] [--json FILE] [--msg-root DIR ...] [--no-plots]
 
-BAG is a rosbag2 folder (MCAP or SQLite storage) as written by ``ird_ros.nodes.recorder``
+BAG is a rosbag2 folder (MCAP or SQLite storage; or the .mcap file in it) as written by ``ird_ros.nodes.recorder``
 (``ird-launch --record BAG``). Only the ``rosbags`` library is needed (plus numpy and
 matplotlib for the plots): the ``ird_msgs`` types are read from the repository's
 ``msgs_config/ird_msgs/msg/*.msg`` (``--msg-root`` adds other folders of ``<pkg>/msg/*.msg``).
@@ -112,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The bag and the report's destinations."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bag", type=Path, help="rosbag2 folder")
+    parser.add_argument("bag", type=Path, help="rosbag2 folder (or its .mcap file)")
     parser.add_argument("--out", type=Path, default=None, help="folder for the PNG plots (default: BAG_analysis)")
     parser.add_argument("--json", type=Path, default=None, help="also write the report as JSON here")
     parser.add_argument("--msg-root", type=Path, action="append", default=[],
@@ -121,13 +121,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _not_a_bag(bag: Path) -> str:
+    """Why ``bag`` is no rosbag2 folder ("" when it has a metadata.yaml to read)."""
+    if not bag.exists():
+        return "does not exist"
+    if not bag.is_dir():
+        return "is not a folder (BAG is the rosbag2 folder, or the .mcap file in it)"
+    if not (bag / "metadata.yaml").is_file():
+        return ("is not a readable rosbag2 folder (no metadata.yaml; was the recorder stopped with SIGKILL? "
+                "ird-reindex-bag rebuilds it)")
+    return ""
+
 def main(argv: list[str] | None = None) -> int:
     """Analyse, print and (with --json) save the report; exit status 0, 1 if the bag can't be read,
     3 if a plot could not be drawn."""
     args = build_parser().parse_args(argv)
-    if not (args.bag / "metadata.yaml").is_file():
-        print(f"error: {args.bag} is not a readable rosbag2 folder (no metadata.yaml; "
-              "was the recorder stopped with SIGKILL?)", file=sys.stderr)
+    if args.bag.is_file() and args.bag.suffix == ".mcap":
+        args.bag = args.bag.parent  # the bag's MCAP file: its folder is the bag
+    problem = _not_a_bag(args.bag)
+    if problem:
+        print(f"error: {args.bag} {problem}", file=sys.stderr)
         return 1
     out = None if args.no_plots else (args.out or args.bag.parent / f"{args.bag.name}_analysis")
     try:
