@@ -118,6 +118,14 @@ def test_the_command_line_refuses_a_bad_setting_before_any_trial(tmp_path, capsy
     assert not out.exists()
 
 
+def test_an_out_that_cannot_be_a_folder_is_refused_before_any_trial(tmp_path, capsys) -> None:
+    blocker = tmp_path / "active"
+    blocker.write_text("a file where the report's folder would go")
+    assert active_cli.main(["--trials", "1", "--workers", "1", "--out", str(blocker / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert f"--out: cannot make the folder {blocker / 'sub'}:" in err and "trials (" not in err, err
+    assert blocker.read_text() == "a file where the report's folder would go"
+
 @pytest.mark.timeout(600)
 def test_script_outputs_columns_rows_and_worker_independence(tmp_path, gold_trials) -> None:
     mod = active_cli

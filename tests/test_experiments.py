@@ -289,6 +289,16 @@ def test_the_command_line_refuses_a_bad_setting_before_any_trial(tmp_path: Path,
     assert not out.exists()
 
 
+def test_an_out_that_cannot_be_a_folder_is_refused_before_any_trial(tmp_path: Path, capsys) -> None:
+    blocker = tmp_path / "results"
+    blocker.write_text("a file where the report's folder would go")
+    for out in (blocker, blocker / "sub"):
+        assert cli.main(["--trials", "1", "--workers", "1", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"--out: cannot make the folder {out}:" in err and "trials (" not in err, err
+    assert blocker.read_text() == "a file where the report's folder would go"
+
+
 @pytest.mark.parametrize("workers", ["0", "-2", "two"])
 def test_workers_must_be_a_positive_integer(tmp_path: Path, capsys, workers: str) -> None:
     with pytest.raises(SystemExit) as stop:
@@ -518,6 +528,10 @@ def test_chunks_merge_into_the_report_of_one_run(tmp_path, capsys):
     assert "--merge: the chunks' settings differ" in capsys.readouterr().err
     assert cli.main(["--report-only", "--out", str(merged), "--merge", str(tmp_path / "missing")]) == 2
     assert "cannot read" in capsys.readouterr().err
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    assert cli.main(["--report-only", "--out", str(blocker / "report"), "--merge", str(chunks["side0"])]) == 2
+    assert f"--out: cannot make the folder {blocker / 'report'}:" in capsys.readouterr().err
     empty = tmp_path / "empty"
     empty.mkdir()
     (empty / "run.json").write_text((other / "run.json").read_text())

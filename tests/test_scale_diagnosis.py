@@ -133,6 +133,17 @@ def test_the_command_line_refuses_a_bad_seed_or_beta_before_any_diagnosis(tmp_pa
     assert not out.exists()
 
 
+def test_an_out_that_cannot_be_written_is_refused_before_any_diagnosis(tmp_path, capsys) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    for out, message in ((tmp_path, f"--out: {tmp_path} is a folder, not a file"),
+                         (blocker / "rows.csv", f"--out: cannot make the folder {blocker}:")):
+        with pytest.raises(SystemExit) as stop:
+            scale_cli.main(["--sizes", "5:5", "--seeds", "1", "--workers", "1", "--out", str(out)])
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and message in err and "diagnoses," not in err, err
+    assert blocker.read_text() == "kept"
+
 def test_the_command_line_writes_one_row_per_diagnosis_and_a_table(tmp_path, capsys) -> None:
     out = tmp_path / "rows.csv"
     assert scale_cli.main(["--sizes", "5:5", "--seeds", "2", "--betas", "50", "10", "--conditions", "side_effects",

@@ -34,6 +34,7 @@ from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.experiments.report import RunRecord
+from ird_core.experiments.tables import make_output_folder
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS
@@ -96,8 +97,13 @@ def spec_settings(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_active(args: argparse.Namespace, specs: list[active.ActiveSpec], settings: dict[str, Any],
                command: str) -> int:
-    """Run ``specs``, write the report into ``args.out`` and print the headline. Exit status 0."""
-    args.out.mkdir(parents=True, exist_ok=True)
+    """Run ``specs``, write the report into ``args.out`` and print the headline. Exit status 0, 2
+    when ``args.out`` cannot be made a folder (before any trial)."""
+    try:
+        make_output_folder(args.out)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     print(f"{len(specs)} trials ({args.trials} per condition x {len(args.conditions)} conditions), "
           f"{parallel.describe(args.workers, args.scheduler)}", file=sys.stderr)
     code = code_version()  # before any trial: the code that runs them
@@ -129,7 +135,11 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
         print(exc, file=sys.stderr)
         return 2
     conditions = list(dict.fromkeys(r.condition for r in results))
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        make_output_folder(out)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     active_report.write_report(out, results, active.aggregate(results), conditions,
                                RunRecord(merged.command, merged.wall, merged.settings, merged.code))
     print(f"report rewritten in {out}")

@@ -81,6 +81,7 @@ from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES
 from ird_core.experiments.summaries import aggregate
+from ird_core.experiments.tables import make_output_folder
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
@@ -290,10 +291,10 @@ def run_experiment(args: argparse.Namespace, settings: dict[str, Any], condition
         return 2
     try:
         specs = make_specs(conditions, trials, args.seed, **settings)
-    except ValueError as exc:  # the settings passed trial_settings: a seed the trials cannot use
+        make_output_folder(args.out)
+    except ValueError as exc:  # a seed the trials cannot use, or an --out no report can be written to
         print(exc, file=sys.stderr)
         return 2
-    args.out.mkdir(parents=True, exist_ok=True)
     where = parallel.describe(args.workers, args.scheduler)
     print(f"{len(specs)} trials ({trials} per condition x {len(conditions)} conditions), {where}", file=sys.stderr)
     code = code_version()  # before any trial: the code that runs them
@@ -328,7 +329,11 @@ def rewrite_report(out: Path, chunks: "list[Path] | None" = None) -> int:
     results.sort(key=lambda r: (report.ORDER.index(r.condition), r.seed))  # stable: a trial's rows keep their order
     summaries = aggregate(results)
     run = report.RunRecord(merged.command, merged.wall, merged.settings, merged.code)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        make_output_folder(out)
+    except ValueError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     report.write_report(out, results, summaries, run)
     frontier_report.write_frontier(out, summaries, run)
     print(report.markdown_table(summaries, "main"))

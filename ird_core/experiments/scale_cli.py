@@ -20,6 +20,7 @@ import argparse
 import csv
 import dataclasses
 import itertools
+import os
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -74,6 +75,18 @@ def summary_table(rows: Sequence[ScaleDiagnosis]) -> str:
     return "\n".join(lines)
 
 
+def _unwritable(path: Path) -> str:
+    """Why the csv ``path`` could not be written ("" if it can; its folder is made)."""
+    if path.is_dir():
+        return f"{path} is a folder, not a file"
+    if path.exists():
+        return "" if os.access(path, os.W_OK) else f"cannot write {path}"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot make the folder {path.parent}: {exc.strerror or exc}"
+    return "" if os.access(path.parent, os.W_OK | os.X_OK) else f"cannot write into {path.parent}"
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=parse_size, nargs="+", default=[(15, 30), (32, 60), (64, 120)],
@@ -97,11 +110,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                     args.conditions, args.sizes, args.betas, args.methods, range(args.seeds))]
     except ValueError as exc:  # a seed or beta the trials cannot use, named before any work
         parser.error(str(exc))
+    if args.out is not None:  # checked before any work; an earlier file is replaced only at the end
+        problem = _unwritable(args.out)
+        if problem:
+            parser.error(f"--out: {problem}")
     print(f"{len(jobs)} diagnoses, {describe(args.workers, args.scheduler)}", file=sys.stderr)
     rows = parallel_map(_run, jobs, args.workers, args.scheduler, desc="diagnoses")
     print(summary_table(rows))
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         with args.out.open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(DIAGNOSIS_COLUMNS)
