@@ -39,8 +39,11 @@ def main(argv: list[str] | None = None) -> int:
         inst = lavaland.make_instance(args.condition, args.seed, size=args.size, horizon=args.horizon,
                                       obs_dim=args.obs_dim)
         path = world_file.export_instance(inst, args.out, args.name or f"{args.condition}_{args.seed}")
-    except ValueError as exc:
-        parser.error(str(exc))
+    except ValueError as exc:  # the library names its arguments; the command line names its flags
+        text = str(exc)
+        for argument, flag in (("directory: ", "--out: "), ("name: ", "--name: ")):
+            text = flag + text[len(argument):] if text.startswith(argument) else text
+        parser.error(text)
     world_file.load_world(path)  # what was written must load
     print(path)
     return 0

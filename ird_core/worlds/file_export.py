@@ -49,7 +49,7 @@ def export_instance(instance: lavaland.LavalandInstance, directory: str | os.Pat
         ValueError: naming ``name`` unless it is a plain file stem (printable, 1 to
             ``MAX_NAME_LENGTH`` characters, no path separator, not ``.`` or ``..``: the files stay in
             ``directory``), or ``instance.condition`` for an instance Lavaland did not generate;
-            before anything is written.
+            before anything is written. Naming ``directory`` when it cannot be made a folder.
     """
     separators = {"/", "\\", os.sep, os.altsep} - {None}
     if (not isinstance(name, str) or not name or len(name) > MAX_NAME_LENGTH or not name.isprintable()
@@ -60,7 +60,10 @@ def export_instance(instance: lavaland.LavalandInstance, directory: str | os.Pat
     if condition not in lavaland.ALL_CONDITIONS:
         raise ValueError(f"instance.condition: only generated Lavaland instances can be exported, got {condition!r}")
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"directory: cannot make the folder {directory}: {exc.strerror or exc}") from None
     present = NUM_TERRAINS if condition == Condition.POT_OF_GOLD else len(_LATENT_TERRAINS)
     colours = {t: _hex_rgb(TERRAIN_COLORS[t]) for t in range(present)}
     terrains: list[dict] = [{"name": TERRAIN_NAMES[t], "colour": colours[t],

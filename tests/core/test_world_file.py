@@ -212,6 +212,31 @@ def test_an_export_name_that_is_not_a_file_stem_is_refused_before_anything_is_wr
     assert world_file.export_instance(instance, out, "x" * 64).parent == out
 
 
+def test_an_export_directory_that_cannot_be_a_folder_is_refused_naming_it(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    instance = lavaland.make_instance("side_effects", 0, size=5, horizon=5)
+    for out in (blocker, blocker / "sub"):
+        with pytest.raises(ValueError, match=f"^directory: cannot make the folder {re.escape(str(out))}: "):
+            world_file.export_instance(instance, out, "w")
+    assert blocker.read_text() == "kept"
+
+def test_the_export_command_names_its_flags(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from ird_core.worlds import export
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    base = ["--condition", "side_effects", "--size", "5", "--horizon", "5"]
+    for argv, message in ((["--out", str(blocker)], f"--out: cannot make the folder {blocker}: "),
+                          (["--out", str(tmp_path / "w"), "--name", "../evil"], "--name: must be a file stem")):
+        with pytest.raises(SystemExit) as stop:
+            export.main([*base, *argv])
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and f"error: {message}" in err, err
+    assert blocker.read_text() == "kept" and not (tmp_path / "evil.yaml").exists()
+    assert export.main([*base, "--out", str(tmp_path / "w")]) == 0
+    assert capsys.readouterr().out == f"{tmp_path / 'w' / 'side_effects_0.yaml'}\n"
+
 @pytest.mark.parametrize("condition", lavaland.ALL_CONDITIONS)
 def test_lavaland_round_trip(tmp_path: Path, condition: str) -> None:
     original = lavaland.make_instance(condition, 11, size=6, horizon=6, obs_dim=4)
