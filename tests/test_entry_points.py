@@ -103,6 +103,18 @@ def test_plot_posterior_terrain_refuses_a_bad_argument_before_sampling(
     assert not (tmp_path / "out.png").exists()
 
 
+def test_plot_posterior_terrain_refuses_an_output_it_cannot_write_before_sampling(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    for output, message in ((tmp_path, f"output: {tmp_path} is a folder, not a file"),
+                            (blocker / "p.png", f"output: cannot make the folder {blocker}: ")):
+        with pytest.raises(SystemExit) as info:  # exits before the sampler: no seconds of MCMC first
+            posterior_terrain.main([str(output), "--samples", "4"])
+        assert info.value.code == 2 and message in capsys.readouterr().err
+    assert blocker.read_text() == "kept"
+
+
 @pytest.mark.parametrize("argv,message", [
     (["--rate", "0"], "--rate: must be in 0.01..1000 cells per second, got 0.0"),
     (["--rate", "nan"], "--rate: must be in 0.01..1000 cells per second, got nan"),

@@ -27,6 +27,7 @@ import numpy as np
 from ird_core import posterior, style
 from ird_core.checks import check_int, check_real
 from ird_core.experiments.progress import step_progress
+from ird_core.experiments.tables import make_output_folder
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
@@ -110,7 +111,7 @@ def plot_spreads(result: Any, instance: lavaland.LavalandInstance, beta: float, 
     fig.suptitle(f"IRD posterior (MaxEnt-Z, beta={beta:g}, {result.num_samples} samples), latent_raw "
                  f"seed {seed}: lava is uncertain")
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_output_folder(out.parent, "out")
     fig.savefig(out, dpi=120)
 
 
@@ -126,6 +127,10 @@ def main(argv: list[str] | None = None) -> int:
         check_real("beta", args.beta, positive=False)
         check_int("samples", args.samples, 1)
         instance = lavaland.make_instance("latent_raw", args.seed)
+        out = Path(args.output)
+        if out.is_dir():
+            raise ValueError(f"output: {out} is a folder, not a file")
+        make_output_folder(out.parent, "output")
     except ValueError as exc:
         parser.error(str(exc))
     start = time.perf_counter()
@@ -138,7 +143,6 @@ def main(argv: list[str] | None = None) -> int:
           f"{elapsed:.1f} s; acceptance {result.acceptance_rate:.2f}, R-hat {result.r_hat_max:.3f}, "
           f"ESS {result.ess_min:.0f}")
     print_spreads(terrain_spreads(result.samples, instance))
-    out = Path(args.output)
     plot_spreads(result, instance, args.beta, args.seed, out)
     print(f"wrote {out}")
     return 0
