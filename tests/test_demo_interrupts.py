@@ -22,6 +22,16 @@ def test_demos_started_in_the_same_second_get_their_own_folders(tmp_path: Path,
     assert all(p.is_dir() and p.parent == tmp_path / "out" / "demo" for p in made)  # relative to the caller
 
 
+def test_an_out_where_no_folder_can_be_made_ends_the_demo_before_anything_starts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    for out in (blocker, blocker / "sub"):
+        assert demo.main(["--out", str(out), "--no-survey"]) == 2
+        err = capsys.readouterr().err
+        assert f"[demo] --out: cannot make a run folder in {out}: " in err and "Traceback" not in err, err
+    assert blocker.read_text() == "kept"
+
 class FakeSurvey:
     cancelled = 0
 

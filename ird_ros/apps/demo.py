@@ -197,17 +197,21 @@ def mission_spec(args: argparse.Namespace) -> tuple[TrialSpec, str]:
 
 def make_run_dir(out: str | Path, now: dt.datetime | None = None) -> Path:
     """A new folder ``run-<time>`` in ``out`` (a relative ``out`` is taken from the working
-    directory); ``run-<time>-2``, ``-3``, ... when demos started in the same second took the name."""
+    directory); ``run-<time>-2``, ``-3``, ... when demos started in the same second took the name.
+    ``ValueError`` naming ``--out`` when no folder can be made there."""
     base = Path(out).resolve()
-    base.mkdir(parents=True, exist_ok=True)
     stamp = (now or dt.datetime.now()).strftime("run-%Y%m%d-%H%M%S")
-    for n in itertools.count(1):
-        run_dir = base / (stamp if n == 1 else f"{stamp}-{n}")
-        try:
-            run_dir.mkdir()  # atomic: of two demos, one gets each name
-        except FileExistsError:
-            continue
-        return run_dir
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+        for n in itertools.count(1):
+            run_dir = base / (stamp if n == 1 else f"{stamp}-{n}")
+            try:
+                run_dir.mkdir()  # atomic: of two demos, one gets each name
+            except FileExistsError:
+                continue
+            return run_dir
+    except OSError as exc:
+        raise ValueError(f"--out: cannot make a run folder in {base}: {exc.strerror or exc}") from None
     raise AssertionError("unreachable")
 
 
@@ -386,8 +390,9 @@ STOPPED_LINE = "[demo] stopped by Ctrl-C"
 
 def main(argv: list[str] | None = None) -> int:
     """The mission: set up, start the survey, run the graph and its client, report. Exit code 0,
-    1 if the graph did not start, 2 for an unreadable ``--world``, 130 after Ctrl-C (wherever it
-    comes: one line, never a traceback; the graph and the survey are stopped first)."""
+    1 if the graph did not start, 2 for an unreadable ``--world`` or an unusable ``--out``, 130
+    after Ctrl-C (wherever it comes: one line, never a traceback; the graph and the survey are
+    stopped first)."""
     try:
         return _main(argv)
     except KeyboardInterrupt:
@@ -405,7 +410,11 @@ def _main(argv: list[str] | None) -> int:
     except KeyboardInterrupt:  # while loading --world: nothing was started
         print(f"\n{STOPPED_LINE}", file=sys.stderr)
         return 130
-    setup = prepare(args, spec, scene)
+    try:
+        setup = prepare(args, spec, scene)
+    except ValueError as exc:  # nothing was started
+        print(f"[demo] {exc}", file=sys.stderr)
+        return 2
     t_start = time.monotonic()
     print_header(args, setup)
     background = Survey(None if args.no_survey else spec)
