@@ -154,3 +154,15 @@ def test_bad_arguments_are_refused_naming_what_is_wrong(kwargs: dict[str, Any], 
 def test_an_existing_record_dir_is_refused(tmp_path: Path) -> None:
     with pytest.raises(LaunchError, match="already exists"):
         plan_launch(record_dir=tmp_path)
+
+
+def test_a_record_or_log_dir_under_a_file_is_refused_before_any_node_starts(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    with pytest.raises(LaunchError, match=f"^record dir {blocker / 'bag'}: {blocker} is not a folder$"):
+        plan_launch(record_dir=blocker / "bag")
+    for log_dir in (blocker, blocker / "logs"):
+        with pytest.raises(LaunchError, match=f"^log dir {log_dir}: {blocker} is not a folder$"):
+            plan_launch(log_dir=log_dir)
+    assert plan_launch(record_dir=tmp_path / "new" / "bag", log_dir=tmp_path / "logs").log_dir == tmp_path / "logs"
+    assert blocker.read_text() == "kept" and not (tmp_path / "new").exists()  # planning makes no folder

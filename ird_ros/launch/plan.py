@@ -262,7 +262,7 @@ def plan_launch(
     return LaunchPlan(
         nodes=tuple(planned), params_file=params_file, respawn_delay=delay, respawn_max_retries=max_retries,
         record_dir=record_path, record_topics=topics, recorded_topics=recorded, domain=domain,
-        log_dir=Path(log_dir) if log_dir is not None else None, output=output_mode,
+        log_dir=_log_dir(log_dir), output=output_mode,
         cwd=Path(cwd) if cwd is not None else Path.cwd(), base_env=MappingProxyType(base_env), notes=tuple(notes))
 
 
@@ -328,7 +328,31 @@ def _record_dir(record_dir: str | os.PathLike[str] | None) -> Path | None:
     path = Path(record_dir).resolve()
     if path.exists():
         raise LaunchError(f"record dir {path} already exists: choose a new folder")
+    problem = _unmakeable_folder(path)
+    if problem:
+        raise LaunchError(f"record dir {path}: {problem}")
     return path
+
+
+def _log_dir(log_dir: str | os.PathLike[str] | None) -> Path | None:
+    if log_dir is None:
+        return None
+    path = Path(log_dir)
+    problem = _unmakeable_folder(path)
+    if problem:
+        raise LaunchError(f"log dir {path}: {problem}")
+    return path
+
+
+def _unmakeable_folder(path: Path) -> str:
+    """Why no folder can be made (or used) at ``path``: its nearest existing ancestor, or the path
+    itself, is a file or not writable ("" when the folder can be made or is there)."""
+    existing = next(p for p in (path, *path.parents) if p.exists())  # "/" exists
+    if not existing.is_dir():
+        return f"{existing} is not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"cannot write into {existing}"
+    return ""
 
 
 def _respawn_limits(delay: float | None, max_retries: int | None, settings: Mapping[str, Any]) -> tuple[float, int]:

@@ -205,6 +205,7 @@ class RecorderNode(ManagedNode):
         self._flush_stop = threading.Event()
         self._recording_subs: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
+        self.bag_created = False  # a configure made the bag folder (summary() then describes it)
         super().__init__(NODE_NAME, **kwargs)
 
     def configure(self, p: dict[str, Any]) -> None:
@@ -221,13 +222,17 @@ class RecorderNode(ManagedNode):
         self.topics: list[str] = [t for t in self._string_array("topics") if t]
         self.exclude = set(self._string_array("exclude_topics"))
         self.depth = int(p["queue_depth"])
-        self.output_dir.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.output_dir.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecorderError(f"output_dir {self.output_dir}: cannot make its folder: {exc.strerror or exc}") from None
 
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         # The writer is used by the executor's callbacks and by the checkpoint thread: one at a time.
         self._writer_lock = threading.Lock()
         self.writer = Writer(self.output_dir, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.open()
+        self.bag_created = True
         checkpoint(self.writer)  # metadata.yaml and a readable (empty) MCAP from the start
         self.counts = {}
         self._recording_conns: dict[str, Any] = {}
@@ -390,8 +395,9 @@ def _drain(executor: SingleThreadedExecutor, node: RecorderNode, max_seconds: fl
     # starved process: SIGINT lands with status/discovery timers due) the first pass ran a
     # timer, recorded nothing and ended the drain with messages still queued (the last
     # /rob/status and /odom of a run went missing from the bag).
-    for timer in (node._status_timer, node._discovery_timer):
-        node.destroy_timer(timer)
+    for name in ("_status_timer", "_discovery_timer"):  # absent when configure failed
+        if hasattr(node, name):
+            node.destroy_timer(getattr(node, name))
     deadline = time.monotonic() + max_seconds
     while time.monotonic() < deadline:
         before = sum(node.counts.values())
@@ -426,7 +432,7 @@ def main(args: list[str] | None = None) -> int:
                 _drain(executor, node)
         finally:
             node.close()
-            if hasattr(node, "output_dir"):  # configured: it has a bag
+            if node.bag_created:
                 node.get_logger().info(node.summary())
             executor.shutdown()
             node.destroy_node()

@@ -164,6 +164,34 @@ def test_existing_output_dir_is_refused(ros_domain: DomainLease, tmp_path: Path)
     assert sorted(os.listdir(out)) == ["keep.txt"]
 
 
+def test_a_failed_configure_under_a_lifecycle_manager_ends_cleanly(ros_node: Any, ros_domain: DomainLease,
+                                                                    tmp_path: Path) -> None:
+    """As the launcher runs it (autostart off): a configure that cannot make the bag's folder is
+    refused naming output_dir, and the stop that follows ends without a traceback or a bag summary."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    from ird_ros.waits import call_service
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    out = blocker / "bag"
+    proc = spawn_node_process(["-m", "ird_ros.nodes.recorder", "--ros-args", "-p", f"output_dir:={out}",
+                               "-p", "autostart:=false"], domain=ros_domain, name="recorder-unmade")
+    client = ros_node.create_client(ChangeState, "/recorder/change_state")
+    try:
+        configure = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))
+        answer = call_service(ros_node, client, configure, timeout=30.0, processes=[proc])
+        assert not answer.success
+    finally:
+        ros_node.destroy_client(client)
+        code = proc.stop()
+    output = proc.output()
+    assert code == 0, output
+    assert f"output_dir {out}: cannot make its folder" in output, output
+    assert "Traceback" not in output and "messages on" not in output, output
+    assert blocker.read_text() == "kept"
+
 def test_missing_output_dir_is_an_error(ros_domain: DomainLease) -> None:
     proc = spawn_node_process(["-m", "ird_ros.nodes.recorder"], domain=ros_domain, name="recorder-noout")
     assert proc.proc.wait(timeout=30) == 2
