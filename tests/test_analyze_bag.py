@@ -303,6 +303,19 @@ def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tm
     assert (out / "trajectories_0.png").is_file() and (out / "true_return.png").is_file()
 
 
+def test_cli_refuses_an_out_or_json_it_cannot_write_before_reading_the_bag(
+        bag: tuple[Path, dict[str, Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, _exp = bag
+    blocker = tmp_path / "a_file"
+    blocker.write_text("kept")
+    for argv, message in ((["--out", str(blocker / "plots")], f"error: --out: {blocker} is not a folder"),
+                          (["--json", str(tmp_path)], f"error: --json: {tmp_path} is a folder, not a file"),
+                          (["--no-plots", "--json", str(blocker / "r.json")], f"error: --json: {blocker} is not a folder")):
+        assert analyze_bag_app.main([str(path), *argv]) == 2
+        captured = capsys.readouterr()
+        assert captured.err == message + "\n" and captured.out == ""  # nothing analysed
+    assert blocker.read_text() == "kept"
+
 def test_cli_rejects_an_unfinished_bag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "broken.mcap").write_bytes(b"\x89MCAP0\r\n")  # what a SIGKILLed writer leaves

@@ -29,7 +29,7 @@ def test_an_out_where_no_folder_can_be_made_ends_the_demo_before_anything_starts
     for out in (blocker, blocker / "sub"):
         assert demo.main(["--out", str(out), "--no-survey"]) == 2
         err = capsys.readouterr().err
-        assert f"[demo] --out: cannot make a run folder in {out}: " in err and "Traceback" not in err, err
+        assert f"[demo] --out: cannot make the folder {out}: " in err and "Traceback" not in err, err
     assert blocker.read_text() == "kept"
 
 class FakeSurvey:

@@ -137,7 +137,7 @@ def test_an_out_that_cannot_be_written_is_refused_before_any_diagnosis(tmp_path,
     blocker = tmp_path / "a_file"
     blocker.write_text("kept")
     for out, message in ((tmp_path, f"--out: {tmp_path} is a folder, not a file"),
-                         (blocker / "rows.csv", f"--out: cannot make the folder {blocker}:")):
+                         (blocker / "rows.csv", f"--out: {blocker} is not a folder")):
         with pytest.raises(SystemExit) as stop:
             scale_cli.main(["--sizes", "5:5", "--seeds", "1", "--workers", "1", "--out", str(out)])
         err = capsys.readouterr().err

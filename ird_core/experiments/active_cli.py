@@ -34,7 +34,7 @@ from ird_core.experiments.chunks import load_chunks
 from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.experiments.report import RunRecord
-from ird_core.experiments.tables import make_output_folder
+from ird_core.output_paths import make_output_folder
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.posterior import METHODS
 from ird_core.worlds.lavaland import ALL_CONDITIONS

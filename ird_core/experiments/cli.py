@@ -81,9 +81,9 @@ from ird_core.experiments.journal import open_journal
 from ird_core.experiments.provenance import code_version
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES
 from ird_core.experiments.summaries import aggregate
-from ird_core.experiments.tables import make_output_folder
 from ird_core.planning.sample_scale import SAMPLE_SCALES
 from ird_core.experiments.trials import QUICK, Z_METHODS, SamplerSettings, TrialResult, TrialSpec, make_specs, run_trial
+from ird_core.output_paths import make_output_folder
 from ird_core.vocabulary import PROXY_COUNTS, RISK_MEASURES
 from ird_core.worlds.lavaland import CONDITIONS, FILE_CONDITION
 from ird_core.worlds.world_file import load_world_file

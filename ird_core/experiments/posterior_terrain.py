@@ -27,7 +27,7 @@ import numpy as np
 from ird_core import posterior, style
 from ird_core.checks import check_int, check_real
 from ird_core.experiments.progress import step_progress
-from ird_core.experiments.tables import make_output_folder
+from ird_core.output_paths import make_output_folder
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain

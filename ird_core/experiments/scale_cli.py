@@ -20,7 +20,6 @@ import argparse
 import csv
 import dataclasses
 import itertools
-import os
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -30,6 +29,7 @@ import numpy as np
 from ird_core.experiments.parallel import add_arguments, describe, parallel_map
 from ird_core.experiments.scale import DIAGNOSIS_COLUMNS, ScaleDiagnosis, diagnose
 from ird_core.experiments.trials import Z_METHODS, TrialSpec
+from ird_core.output_paths import file_problem
 from ird_core.vocabulary import CONDITIONS
 
 __all__ = ["main", "parse_size", "summary_table"]
@@ -75,18 +75,6 @@ def summary_table(rows: Sequence[ScaleDiagnosis]) -> str:
     return "\n".join(lines)
 
 
-def _unwritable(path: Path) -> str:
-    """Why the csv ``path`` could not be written ("" if it can; its folder is made)."""
-    if path.is_dir():
-        return f"{path} is a folder, not a file"
-    if path.exists():
-        return "" if os.access(path, os.W_OK) else f"cannot write {path}"
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"cannot make the folder {path.parent}: {exc.strerror or exc}"
-    return "" if os.access(path.parent, os.W_OK | os.X_OK) else f"cannot write into {path.parent}"
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=parse_size, nargs="+", default=[(15, 30), (32, 60), (64, 120)],
@@ -111,7 +99,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:  # a seed or beta the trials cannot use, named before any work
         parser.error(str(exc))
     if args.out is not None:  # checked before any work; an earlier file is replaced only at the end
-        problem = _unwritable(args.out)
+        problem = file_problem(args.out)
         if problem:
             parser.error(f"--out: {problem}")
     print(f"{len(jobs)} diagnoses, {describe(args.workers, args.scheduler)}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""How both experiments' reports write numbers: csv cells, percentages and paths; and where.
+"""How both experiments' reports write numbers: csv cells, percentages and paths.
 
 Invariants: a csv float has 6 significant digits (``nan`` for NaN), a bool is ``0`` / ``1``; a
 markdown percentage is rounded to a whole percent; a path's cells are ``"row,col row,col ..."``.
@@ -9,11 +9,10 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
-__all__ = ["format_cell", "write_csv", "percent", "number", "cells_text", "write_run_json", "make_output_folder"]
+__all__ = ["format_cell", "write_csv", "percent", "number", "cells_text", "write_run_json"]
 
 
 def format_cell(value: object) -> str:
@@ -56,14 +55,3 @@ def write_run_json(path: Path, command: str, wall: float, settings: Mapping[str,
     path.write_text(json.dumps({"command": command, "wall_seconds": wall, "settings": settings,
                                 "figures": [f.name for f in figures], "code": code}, indent=2, default=str))
 
-
-def make_output_folder(out: Path, option: str = "--out") -> None:
-    """Create the report's folder ``out`` (parents included) before any trial runs, so that a
-    report that cannot be written fails at once; ``ValueError`` naming ``option`` and ``out`` when
-    a file stands in its way or the folder cannot be written."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{option}: cannot make the folder {out}: {exc.strerror or exc}") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise ValueError(f"{option}: cannot write into the folder {out}")

@@ -22,7 +22,8 @@ Writes into --out (default: BAG_analysis next to the bag) trajectories_<i>.png (
 odometry and plans over the ground-truth /world/terrain; none for a bag without missions, which
 says so), true_return.png, posterior.png and
 query_rounds.png (each question's options on the map); with --json, the whole report as JSON.
-Exit status 1 if the bag can't be read; 3 if the bag was read but a plot could not be drawn
+Exit status 1 if the bag can't be read; 2 if --out or --json cannot be written (checked
+before the bag is read); 3 if the bag was read but a plot could not be drawn
 (the report is printed, the other plots written, the failure named as a plotting one).
 """
 
@@ -35,6 +36,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ird_core.output_paths import file_problem, folder_problem
 from ird_ros.bags.analysis import analyze
 from ird_ros.bags.rounds import rounds_table
 from ird_ros.bags.storage import REPO_MSG_ROOT, make_typestore
@@ -134,7 +136,7 @@ def _not_a_bag(bag: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Analyse, print and (with --json) save the report; exit status 0, 1 if the bag can't be read,
-    3 if a plot could not be drawn."""
+    2 if --out or --json cannot be written (checked first), 3 if a plot could not be drawn."""
     args = build_parser().parse_args(argv)
     if args.bag.is_file() and args.bag.suffix == ".mcap":
         args.bag = args.bag.parent  # the bag's MCAP file: its folder is the bag
@@ -143,6 +145,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {args.bag} {problem}", file=sys.stderr)
         return 1
     out = None if args.no_plots else (args.out or args.bag.parent / f"{args.bag.name}_analysis")
+    for option, problem in (("--out", out and folder_problem(out)), ("--json", args.json and file_problem(args.json))):
+        if problem:  # before reading the bag: the report would be lost at the end
+            print(f"error: {option}: {problem}", file=sys.stderr)
+            return 2
     try:
         report = analyze(args.bag, out, make_typestore([REPO_MSG_ROOT, *args.msg_root]))
     except Exception as exc:  # a corrupt bag: say what and where

@@ -44,6 +44,7 @@ The mission (docs/spec.md sections 3-7) talks to the graph only through
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import datetime as dt
 import itertools
@@ -63,6 +64,7 @@ import yaml
 from ird_core import posterior
 from ird_core.designer.queries import STRATEGIES
 from ird_core.experiments import MAIN_BASELINE, MAIN_GRANULARITY, QUICK, TrialSpec, run_trial, trial_instance
+from ird_core.output_paths import make_output_folder
 from ird_core.render import save_mission_figure
 from ird_core.worlds import lavaland
 from ird_core.worlds.lavaland import LavalandInstance
@@ -200,18 +202,13 @@ def make_run_dir(out: str | Path, now: dt.datetime | None = None) -> Path:
     directory); ``run-<time>-2``, ``-3``, ... when demos started in the same second took the name.
     ``ValueError`` naming ``--out`` when no folder can be made there."""
     base = Path(out).resolve()
+    make_output_folder(base, "--out")
     stamp = (now or dt.datetime.now()).strftime("run-%Y%m%d-%H%M%S")
-    try:
-        base.mkdir(parents=True, exist_ok=True)
-        for n in itertools.count(1):
-            run_dir = base / (stamp if n == 1 else f"{stamp}-{n}")
-            try:
-                run_dir.mkdir()  # atomic: of two demos, one gets each name
-            except FileExistsError:
-                continue
+    for n in itertools.count(1):
+        run_dir = base / (stamp if n == 1 else f"{stamp}-{n}")
+        with contextlib.suppress(FileExistsError):
+            run_dir.mkdir()  # atomic: of two demos, one gets each name
             return run_dir
-    except OSError as exc:
-        raise ValueError(f"--out: cannot make a run folder in {base}: {exc.strerror or exc}") from None
     raise AssertionError("unreachable")
 
 

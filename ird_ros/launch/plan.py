@@ -51,6 +51,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Iterable, Mapping, Sequence
 
+from ird_core.output_paths import folder_problem
 from ird_ros.graph import names
 from ird_ros.graph.domains import check_domain_id, dds_network, ros_env
 from ird_ros.graph.nodes import NODES, RECORDER_SPEC, NodeSpec, is_managed
@@ -328,7 +329,7 @@ def _record_dir(record_dir: str | os.PathLike[str] | None) -> Path | None:
     path = Path(record_dir).resolve()
     if path.exists():
         raise LaunchError(f"record dir {path} already exists: choose a new folder")
-    problem = _unmakeable_folder(path)
+    problem = folder_problem(path)
     if problem:
         raise LaunchError(f"record dir {path}: {problem}")
     return path
@@ -338,21 +339,10 @@ def _log_dir(log_dir: str | os.PathLike[str] | None) -> Path | None:
     if log_dir is None:
         return None
     path = Path(log_dir)
-    problem = _unmakeable_folder(path)
+    problem = folder_problem(path)
     if problem:
         raise LaunchError(f"log dir {path}: {problem}")
     return path
-
-
-def _unmakeable_folder(path: Path) -> str:
-    """Why no folder can be made (or used) at ``path``: its nearest existing ancestor, or the path
-    itself, is a file or not writable ("" when the folder can be made or is there)."""
-    existing = next(p for p in (path, *path.parents) if p.exists())  # "/" exists
-    if not existing.is_dir():
-        return f"{existing} is not a folder"
-    if not os.access(existing, os.W_OK | os.X_OK):
-        return f"cannot write into {existing}"
-    return ""
 
 
 def _respawn_limits(delay: float | None, max_retries: int | None, settings: Mapping[str, Any]) -> tuple[float, int]:
