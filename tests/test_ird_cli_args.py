@@ -87,6 +87,30 @@ def test_bad_arguments_are_one_line_naming_them_exit_2(argv: list[str], needles:
     assert line.startswith("ird")
 
 
+@pytest.mark.parametrize("argv,needles", [
+    (["--beta", "nan"], ("bad goal: beta", "nan")),
+    (["--beta", "2000"], ("bad goal: beta", "[0, 1000]")),
+    (["--num-samples", "-1"], ("bad goal: num_samples", "[0, 2147483647]", "-1")),
+    (["--seed", "-1"], ("bad goal: seed", "-1")),
+    (["--risk-measure", "cvar", "--risk-level", "2"], ("bad goal: risk_level", "(0, 1]")),
+    (["--queries", "-2"], ("bad goal: queries", "-2")),
+    (["--label", "x" * 300], ("bad goal: label", "300 characters exceed 256")),
+    (["--mode", "trajectory", "--risk-measure", "mean_sd", "--risk-level", "1"], ("bad goal: risk_measure",)),
+])
+def test_a_goal_the_navigator_would_refuse_is_refused_before_looking_for_a_graph(
+        argv: list[str], needles: tuple[str, ...], capsys: pytest.CaptureFixture[str]) -> None:
+    """Checked by the navigator's own check_goal: exit 2 at once, where a search for a graph came first."""
+    assert main(["navigate", *argv, "--timeout", "30"]) == 2
+    line = _one_error_line(capsys, "ird navigate: ", *needles)
+    assert "navigator" not in line
+
+
+def test_result_timeout_must_be_seconds(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["navigate", "--result-timeout", "0"])
+    assert info.value.code == 2
+    _one_error_line(capsys, "--result-timeout", "expected seconds > 0")
+
 def test_a_bad_ros_domain_id_in_the_environment_is_named(monkeypatch: pytest.MonkeyPatch,
                                                          capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setenv("ROS_DOMAIN_ID", "250")

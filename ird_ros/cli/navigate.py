@@ -8,8 +8,9 @@
 Prints one ``feedback:`` line per new feedback (stage, Rob's cell, progress, the posterior), then
 ``result: STATUS ...`` with Rob's lava, target and true return and the cells he drove. Ctrl-C
 cancels the goal (Rob stops where he is), prints how it ended and exits 130; a second Ctrl-C
-leaves at once. Exit status: 0 SUCCEEDED; 2 a goal the navigator rejects naming a field (one line,
-e.g. ``beta: ...``); 1 otherwise (ABORTED, CANCELED by someone else, a goal already active, no
+leaves at once. Exit status: 0 SUCCEEDED; 2 a goal with a bad field (one line naming it: ``bad
+goal: beta: ...`` before anything is sent, by the navigator's own checks within the message's
+ranges; ``goal rejected: queries: ...`` when the navigator's parameters refuse it); 1 otherwise (ABORTED, CANCELED by someone else, a goal already active, no
 graph). The goal's fields and their defaults are the action's (``msgs_config/ird_msgs/action``).
 """
 
@@ -19,6 +20,7 @@ import argparse
 from typing import Any
 
 from ird_core.vocabulary import BASELINES, METHODS, MODES, RISK_MEASURES
+from ird_ros.arg_types import seconds
 from ird_ros.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -55,7 +57,7 @@ def add_parser(verbs: Any) -> None:
     goal.add_argument("--queries", type=int, default=0, help="designer questions before driving (default 0)")
     goal.add_argument("--label", default="ird_cli", help="the plan's label in PlanInfo and Rob's status")
     parser.add_argument("--no-feedback", action="store_true", help="print only the result")
-    parser.add_argument("--result-timeout", type=float, default=600.0, metavar="S",
+    parser.add_argument("--result-timeout", type=seconds, default=600.0, metavar="S",
                         help="seconds for the whole goal before giving up with exit 1 (default 600)")
     add_domain_options(parser)
     parser.set_defaults(run=run)
@@ -103,9 +105,27 @@ def _exit_status(result: Any) -> int:
     return EXIT_FAILED
 
 
+def check_goal_options(args: argparse.Namespace) -> None:
+    """The goal's fields checked as the navigator checks them (``ird_ros.jobs.navigation.check_goal``)
+    against the message's own bounds (the navigator's limits are its parameters, checked there):
+    ``CliError`` (exit 2) naming the field before the command looks for a graph."""
+    from ird_ros.jobs.navigation import GoalLimits, check_goal
+
+    int32_max = 2**31 - 1
+    try:
+        check_goal(method=args.method, beta=args.beta, num_samples=args.num_samples, seed=args.seed, mode=args.mode,
+                   baseline=args.baseline, risk_measure=args.risk_measure, risk_level=args.risk_level,
+                   queries=args.queries, label=args.label,
+                   limits=GoalLimits(max_queries=int32_max, max_num_samples=int32_max))
+    except ValueError as exc:  # the bounds are the message's here, not the navigator's parameters
+        text = str(exc).replace(f"max_num_samples={int32_max}", str(int32_max))
+        raise CliError(f"bad goal: {text.replace(f'max_queries={int32_max}', str(int32_max))}", EXIT_USAGE) from None
+
+
 def run(args: argparse.Namespace) -> int:
     from ird_ros.client import ClientTimeout, GraphNotFound
 
+    check_goal_options(args)
     goal = goal_from_args(args)
     last: list[str] = []
 

@@ -269,10 +269,13 @@ def test_ctrl_c_cancels_the_goal_and_exits_130(graph: Any, ird: Any) -> None:
 
 
 def test_navigate_refuses_a_bad_field_in_one_line(graph: Any) -> None:
-    done = _run(graph, "navigate", "--beta", "5000")
+    """A field only the navigator can judge (its max_queries parameter, 5 in the graph's params)
+    is sent and rejected there (a field out of the message's own range never leaves the client:
+    tests/test_ird_cli_args.py)."""
+    done = _run(graph, "navigate", "--queries", "6")
     assert done.returncode == 2, done.stdout + done.stderr
     last = done.stderr.strip().splitlines()[-1]
-    assert last.startswith("ird navigate: goal rejected: beta") and "5000" in last
+    assert last.startswith("ird navigate: goal rejected: queries") and "max_queries=5" in last, last
 
 
 # --- ird infer -----------------------------------------------------------------------------------
