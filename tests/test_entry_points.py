@@ -108,7 +108,7 @@ def test_plot_posterior_terrain_refuses_an_output_it_cannot_write_before_samplin
     blocker = tmp_path / "a_file"
     blocker.write_text("kept")
     for output, message in ((tmp_path, f"output: {tmp_path} is a folder, not a file"),
-                            (blocker / "p.png", f"output: cannot make the folder {blocker}: ")):
+                            (blocker / "p.png", f"output: {blocker} is not a folder")):
         with pytest.raises(SystemExit) as info:  # exits before the sampler: no seconds of MCMC first
             posterior_terrain.main([str(output), "--samples", "4"])
         assert info.value.code == 2 and message in capsys.readouterr().err

@@ -27,7 +27,7 @@ import numpy as np
 from ird_core import posterior, style
 from ird_core.checks import check_int, check_real
 from ird_core.experiments.progress import step_progress
-from ird_core.output_paths import make_output_folder
+from ird_core.output_paths import file_problem, make_output_folder
 from ird_core.vocabulary import ZMethod
 from ird_core.worlds import lavaland
 from ird_core.worlds.terrain import TERRAIN_NAMES, Terrain
@@ -128,9 +128,8 @@ def main(argv: list[str] | None = None) -> int:
         check_int("samples", args.samples, 1)
         instance = lavaland.make_instance("latent_raw", args.seed)
         out = Path(args.output)
-        if out.is_dir():
-            raise ValueError(f"output: {out} is a folder, not a file")
-        make_output_folder(out.parent, "output")
+        if file_problem(out):  # before sampling: the figure would be lost at the end
+            raise ValueError(f"output: {file_problem(out)}")
     except ValueError as exc:
         parser.error(str(exc))
     start = time.perf_counter()

@@ -11,6 +11,7 @@ import numpy as np
 import yaml
 from PIL import Image
 
+from ird_core.output_paths import make_output_folder
 from ird_core.vocabulary import Condition
 from ird_core.worlds import lavaland
 from ird_core.worlds.file_values import MAX_NAME_LENGTH
@@ -60,10 +61,7 @@ def export_instance(instance: lavaland.LavalandInstance, directory: str | os.Pat
     if condition not in lavaland.ALL_CONDITIONS:
         raise ValueError(f"instance.condition: only generated Lavaland instances can be exported, got {condition!r}")
     directory = Path(directory)
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"directory: cannot make the folder {directory}: {exc.strerror or exc}") from None
+    make_output_folder(directory, "directory")
     present = NUM_TERRAINS if condition == Condition.POT_OF_GOLD else len(_LATENT_TERRAINS)
     colours = {t: _hex_rgb(TERRAIN_COLORS[t]) for t in range(present)}
     terrains: list[dict] = [{"name": TERRAIN_NAMES[t], "colour": colours[t],
