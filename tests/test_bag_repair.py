@@ -202,8 +202,11 @@ def test_force_rebuild_of_a_complete_bag_keeps_everything(tmp_path: Path) -> Non
 
 
 def test_not_a_bag_is_a_value_error(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="bag"):
+    with pytest.raises(ValueError, match=f"^bag: {tmp_path / 'missing'} does not exist$"):
         reindex(tmp_path / "missing")
+    (tmp_path / "a_file").write_text("not a bag")
+    with pytest.raises(ValueError, match=f"^bag: {tmp_path / 'a_file'} is not a directory$"):
+        reindex(tmp_path / "a_file")
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="exactly one .mcap"):
         reindex(tmp_path / "empty")

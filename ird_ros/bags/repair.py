@@ -189,7 +189,7 @@ def _bag_dir(path: Path | str) -> Path:
 def _bag_file(bag: Path) -> Path:
     """The bag's single MCAP file (named in metadata.yaml if readable, else found)."""
     if not bag.is_dir():
-        raise ValueError(f"bag: {bag} is not a directory")
+        raise ValueError(f"bag: {bag} {'is not a directory' if bag.exists() else 'does not exist'}")
     meta = _read_yaml(bag / METADATA)
     names = [Path(p).name for p in (meta or {}).get("relative_file_paths") or []]
     if not names:
