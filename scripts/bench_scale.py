@@ -36,6 +36,7 @@ from ird_core.experiments.progress import progress_bar  # noqa: E402
 from ird_core.experiments.scale_cli import parse_size  # noqa: E402
 from ird_core.experiments.scale_timing import TIMING_COLUMNS, ScaleTiming, time_trial  # noqa: E402
 from ird_core.experiments.trials import Z_METHODS, TrialSpec  # noqa: E402
+from ird_core.output_paths import file_problem  # noqa: E402
 from ird_core.worlds.lavaland import CONDITIONS  # noqa: E402
 
 #: The issue's goals: seconds for a converged posterior and for a plan at 64x64, T = 120.
@@ -106,18 +107,22 @@ def main(argv: "list[str] | None" = None) -> int:
     args = parser.parse_args(argv)
     if args.min_ess < 0 or args.max_iterations < 1:
         parser.error("--min-ess must be >= 0 and --max-iterations >= 1")
+    if args.out is not None and file_problem(args.out):  # before the runs: their rows would be lost
+        parser.error(f"--out: {file_problem(args.out)}")
+    try:  # every run's spec before the first: a seed no trial can use is named now
+        runs = [(TrialSpec(args.condition, seed, size=size, horizon=horizon, novelty_feature=args.novelty_feature),
+                 size, method) for size, horizon in args.sizes for method in args.methods for seed in args.seeds]
+    except ValueError as exc:
+        parser.error(str(exc))
     print(f"{args.condition}, {len(args.seeds)} seed(s), bulk ESS >= {args.min_ess:g}, R-hat <= 1.05; "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}", flush=True)
-    runs = [(size, horizon, method, seed) for size, horizon in args.sizes for method in args.methods
-            for seed in args.seeds]
     for method in args.methods:  # not reported: loads the compiled engine and the caches first
         time_trial(TrialSpec(args.condition, 0, size=6, horizon=8, num_proxy_samples=10), method, 0.0, 1)
     rows: list[ScaleTiming] = []
     bar = progress_bar(len(runs), "scale runs", "run")
     try:
-        for size, horizon, method, seed in runs:
-            bar.set_postfix_str(f"{size}x{size} {method} seed {seed}")
-            spec = TrialSpec(args.condition, seed, size=size, horizon=horizon, novelty_feature=args.novelty_feature)
+        for spec, size, method in runs:
+            bar.set_postfix_str(f"{size}x{size} {method} seed {spec.seed}")
             rows.append(time_trial(spec, method, args.min_ess, args.max_iterations))
             bar.write(format_row(rows[-1]))  # each row as it is measured
             bar.update(1)
@@ -137,6 +142,7 @@ def main(argv: "list[str] | None" = None) -> int:
           "included); plan = the main IRD plan from all samples; literal = one exact DP (the same map "
           "without IRD). x ref: against the first size's median in this run.")
     if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         with open(args.out, "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(TIMING_COLUMNS)

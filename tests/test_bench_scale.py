@@ -114,3 +114,17 @@ def test_an_interrupted_run_prints_and_writes_the_runs_it_measured(bench, tmp_pa
         assert len(list(csv.reader(handle))) == 2  # the header and the one run
     measured = iter([])
     assert bench.main(["--sizes", "6:8", "--seeds", "0"]) == 130  # nothing measured: nothing to print
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "0", "-1"], "seed must be a non-negative int, got -1"),
+    (["--out", "{tmp}"], "--out: {tmp} is a folder, not a file"),
+    (["--out", "{tmp}/a_file/rows.csv"], "--out: {tmp}/a_file is not a folder"),
+])
+def test_bad_arguments_are_refused_before_any_run(bench, tmp_path, capsys, monkeypatch, argv, message) -> None:
+    (tmp_path / "a_file").write_text("kept")
+    monkeypatch.setattr(bench, "time_trial", lambda *a: pytest.fail("a run started"))
+    with pytest.raises(SystemExit) as stop:
+        bench.main(["--sizes", "6:8", *[a.format(tmp=tmp_path) for a in argv]])
+    assert stop.value.code == 2 and message.format(tmp=tmp_path) in capsys.readouterr().err
+    assert (tmp_path / "a_file").read_text() == "kept"
