@@ -291,14 +291,14 @@ def test_cli_prints_summary_and_writes_json(bag: tuple[Path, dict[str, Any]], tm
                                             capsys: pytest.CaptureFixture[str]) -> None:
     path, exp = bag
     out = tmp_path / "out"
-    code = analyze_bag_app.main([str(path), "--out", str(out), "--json", str(tmp_path / "r.json")])
+    code = analyze_bag_app.main([str(path), "--out", str(out), "--json", str(tmp_path / "new" / "r.json")])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     lines = captured.out.splitlines()
     status_line = next(line for line in lines if line.startswith("/rob/status"))
     assert status_line.split()[1:3] == ["ird_msgs/msg/RobStatus", "15"]
     assert any("ird_per_step" in line and "True" in line for line in lines)
-    report = json.loads((tmp_path / "r.json").read_text())
+    report = json.loads((tmp_path / "new" / "r.json").read_text())
     assert [m["touched_lava"] for m in report["missions"]] == [True, False, False]
     assert (out / "trajectories_0.png").is_file() and (out / "true_return.png").is_file()
 

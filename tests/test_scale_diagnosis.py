@@ -145,7 +145,7 @@ def test_an_out_that_cannot_be_written_is_refused_before_any_diagnosis(tmp_path,
     assert blocker.read_text() == "kept"
 
 def test_the_command_line_writes_one_row_per_diagnosis_and_a_table(tmp_path, capsys) -> None:
-    out = tmp_path / "rows.csv"
+    out = tmp_path / "new" / "rows.csv"  # its folder is made
     assert scale_cli.main(["--sizes", "5:5", "--seeds", "2", "--betas", "50", "10", "--conditions", "side_effects",
                            "--workers", "1", "--out", str(out)]) == 0
     with out.open() as handle:

@@ -106,6 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = parallel_map(_run, jobs, args.workers, args.scheduler, desc="diagnoses")
     print(summary_table(rows))
     if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)  # file_problem found that it can be made
         with args.out.open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(DIAGNOSIS_COLUMNS)

@@ -156,6 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print_report(report)
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)  # file_problem found that it can be made
         args.json.write_text(json.dumps(report, indent=2, default=float), encoding="utf-8")
     if report["plot_errors"]:
         print(f"error: {len(report['plot_errors'])} plot(s) could not be drawn (the bag was read; the fault is "
