@@ -55,7 +55,8 @@ sigma = 1 / (T * rms training feature norm), 1 / T for one-hot terrains
 ird_core.experiments.controls.FRONTIER_RISKS; --controls adds the control planners (prior only,
 novelty-avoiding, Sample-Z's other counts reading, Sample-Z without its own term). Either writes
 frontier.md (the table and the goal check: lava <= 2%, target >= 0.8 x literal, gap closed >= 90%)
-and frontier_<condition>.png.
+and frontier_<condition>.png. --training-worlds K observes the proxy in K training worlds of
+the same distribution (the first the one-world trial's, the same proxy in each).
 
 Chunks: --report-only --out DIR rewrites DIR's report from its trials.csv and run.json (nothing
 runs); with --merge A B ... it writes into DIR the report of runs A, B, ... made with the same
@@ -154,6 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "(ird_core.hypothesis.rff)")
     p.add_argument("--rff-features", type=int, default=None, metavar="D",
                    help=f"random features of --hypothesis rff (default {DEFAULT_RFF_FEATURES})")
+    p.add_argument("--training-worlds", type=int, default=None, metavar="K",
+                   help="Lavaland training worlds the designer's proxy is observed in (default 1, the paper's; "
+                        "the first is the one-world trial's, so runs are paired by seed: "
+                        "ird_core.worlds.training_worlds)")
     p.add_argument("--quick", action="store_true",
                    help="the small setting for a fast look (ird_core.experiments.QUICK); explicit flags override it")
     parallel.add_trial_arguments(p, argparse.Namespace(**{f: None for f in SPEC_FLAGS}))
@@ -221,7 +226,7 @@ def z_samplers(args: argparse.Namespace) -> dict[str, SamplerSettings | None]:
 
 #: TrialSpec fields set by an optional flag of the same name (None: the TrialSpec default).
 MODEL_FLAGS: tuple[str, ...] = ("counts", "temperature", "sample_scale", "risk", "risk_level", "frontier", "controls",
-                               "novelty_feature", "novelty_value", "hypothesis", "rff_features")
+                               "novelty_feature", "novelty_value", "hypothesis", "rff_features", "training_worlds")
 
 
 def spec_settings(args: argparse.Namespace) -> dict[str, Any]:

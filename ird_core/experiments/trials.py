@@ -70,6 +70,7 @@ from ird_core.planning.risk_measures import check_risk
 from ird_core.planning.sample_scale import SAMPLE_SCALES, normalise_samples
 from ird_core.vocabulary import PROXY_COUNTS, Baseline, PlanMode, ZMethod
 from ird_core.worlds import evaluation, lavaland, world_file
+from ird_core.worlds.training_worlds import check_training_worlds, with_training_worlds
 
 __all__ = [
     "Z_METHODS",
@@ -242,6 +243,7 @@ class TrialSpec:
     novelty_value: str = "feature_scale"  # its value on novel cells: one of NOVELTY_VALUES
     hypothesis: str = "linear"  # latent conditions: "rff" = random Fourier features (ird_core.hypothesis.rff)
     rff_features: int = DEFAULT_RFF_FEATURES  # D of the "rff" hypothesis space
+    training_worlds: int = 1  # Lavaland training worlds the proxy is observed in (ird_core.worlds.training_worlds)
     sample_z_sampler: SamplerSettings | None = SamplerSettings(
         4, 100, 4, 64, 300, small_dim=10, give_up_after=50, warmup_max_leapfrog=32, trajectory_length=2.5,
         check_every=CHECK_EVERY,
@@ -280,6 +282,10 @@ class TrialSpec:
         if isinstance(self.rff_features, bool) or not isinstance(self.rff_features, (int, np.integer)) \
                 or self.rff_features < 1:
             raise ValueError(f"rff_features must be an integer >= 1, got {self.rff_features!r}")
+        check_training_worlds(self.training_worlds)
+        if self.world and self.training_worlds != 1:
+            raise ValueError(f"training_worlds: a world file's trial has the file's own training worlds, "
+                             f"got {self.training_worlds!r}")
         limit = self.traj_work_limit
         if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
             raise ValueError(f"traj_work_limit must be an integer >= 1 (label expansions), got {limit!r}")
@@ -359,15 +365,17 @@ def trial_posterior(spec: TrialSpec, inst: lavaland.LavalandInstance, method: st
 
 
 def trial_instance(spec: TrialSpec) -> lavaland.LavalandInstance:
-    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)``; with
+    """The spec's instance: its world file's, else ``make_instance(condition, seed, ...)`` with
+    ``training_worlds`` training worlds (the first is the one-world instance's); with
     ``novelty_feature``, its hypothesis features gain the *novel* feature (``novelty_value`` on
     novel cells); with ``hypothesis`` "rff", the latent conditions' hypothesis features are random
     Fourier features (applied first)."""
     if spec.world:
         inst = world_file.load_world(spec.world)
     else:
-        inst = lavaland.make_instance(spec.condition, spec.seed, size=spec.size, horizon=spec.horizon,
-                                      obs_dim=spec.obs_dim)
+        inst = with_training_worlds(lavaland.make_instance(spec.condition, spec.seed, size=spec.size,
+                                                           horizon=spec.horizon, obs_dim=spec.obs_dim),
+                                    spec.training_worlds)
     return spec.hypothesis_space().apply(inst)
 
 

@@ -82,7 +82,7 @@ target with slack for detours (any 15x15 cell is at most 28 moves away).
 
 Longer than 450 lines: this docstring is the specification of the five conditions (about 80
 lines); the code (the instance record, its argument checks and one short builder per condition) is
-about 410.
+about 425.
 """
 
 from __future__ import annotations
@@ -132,6 +132,7 @@ __all__ = [
     "LavalandInstance",
     "check_instance_arguments",
     "make_instance",
+    "indicator_features",
     "train_mdp",
     "test_mdp",
     "proxy_cell_rewards",
@@ -373,6 +374,20 @@ def _sample_maps(streams: _Streams, train_map: MapConfig, test_map: MapConfig, h
     reach = max(1, (3 * int(horizon)) // 4)
     return _Maps(train_labels, test_labels, choose_start(train_labels, rng(streams.train_start), max_distance=reach),
                  choose_start(test_labels, rng(streams.test_start), max_distance=reach))
+
+
+def indicator_features(condition: str, labels: np.ndarray) -> np.ndarray:
+    """The hypothesis features of an indicator condition for ``(H, W)`` labels: ``(H, W, d)``
+    one-hot terrains (side_effects: the paper's four; pot_of_gold: five) or the two sensors'
+    indicators (reward_hacking). ``ValueError`` naming ``condition`` for a latent condition,
+    whose features are observations, not a function of the labels."""
+    if condition == Condition.SIDE_EFFECTS:
+        return _one_hot(labels, _SIDE_EFFECTS_TERRAINS)
+    if condition == Condition.POT_OF_GOLD:
+        return _one_hot(labels, NUM_TERRAINS)
+    if condition == Condition.REWARD_HACKING:
+        return _sensor_features(labels)
+    raise ValueError(f"condition: {condition!r} has no indicator features (its features are observations)")
 
 
 def _side_effects(maps: _Maps, streams: _Streams, obs_dim: int) -> _Features:
