@@ -103,3 +103,17 @@ def test_a_folder_that_is_not_a_run_a_clash_and_a_bad_out_are_refused(runs, tmp_
         with pytest.raises(SystemExit) as stop:
             compare_runs.main([*args, "--out", str(tmp_path / "x.png")] if "--out" not in args else args)
         assert stop.value.code == 2 and message in capsys.readouterr().err, message
+
+
+@pytest.mark.parametrize("damage", ["run.json", "settings", "results.csv"])
+def test_a_damaged_run_is_refused_naming_its_folder(runs, tmp_path, capsys, damage) -> None:
+    folder = runs[1]
+    if damage == "run.json":
+        (folder / "run.json").write_text("{not json")
+    elif damage == "settings":
+        (folder / "run.json").write_text('{"settings": [1, 2]}')
+    else:
+        (folder / "results.csv").write_text("experiment,condition\nmain,latent_raw,extra\n")
+    with pytest.raises(SystemExit) as stop:
+        compare_runs.main([*map(str, runs), "--out", str(tmp_path / "x.png")])
+    assert stop.value.code == 2 and f"{folder}: " in capsys.readouterr().err

@@ -59,12 +59,19 @@ def load_run(folder: Path, x: str, series: str, planner: str) -> list[RunPoint]:
     for name in ("results.csv", "run.json"):
         if not (folder / name).is_file():
             raise ValueError(f"{folder}: not a run folder (no {name}; run_experiments.py --out writes one)")
-    settings = json.loads((folder / "run.json").read_text()).get("settings", {})
+    try:
+        settings = json.loads((folder / "run.json").read_text())["settings"]
+        summaries = read_results_csv(folder / "results.csv")
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{folder}: not a readable run (run.json needs its settings, results.csv the "
+                         f"report's columns): {type(exc).__name__}: {exc}") from None
+    if not isinstance(settings, dict):
+        raise ValueError(f"{folder}: run.json's settings are not a mapping")
     value = _setting(settings, x, "x")
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"x: {x!r} is {value!r} in {folder}, not a number")
     label = f"{series} = {_setting(settings, series, 'series')}" if series else "IRD"
-    main = {(s.condition, s.planner): s for s in read_results_csv(folder / "results.csv") if s.experiment == "main"}
+    main = {(s.condition, s.planner): s for s in summaries if s.experiment == "main"}
     return [RunPoint(float(value), label, condition, main[condition, planner], main[condition, "literal"])
             for condition in ORDER if (condition, planner) in main and (condition, "literal") in main]
 
