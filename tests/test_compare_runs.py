@@ -68,7 +68,7 @@ def test_the_goal_check_names_what_misses(runs) -> None:
                                        "training_worlds")
     assert any(line.startswith("novelty_feature = False, training_worlds = 3, 50 trials: latent_raw")
                and line.endswith("PASS") for line in lines)
-    assert any("training_worlds = 1" in line and "lava 5% > 2%" in line and "target 20% < 40%" in line
+    assert any("training_worlds = 1" in line and "lava 5% > 2%" in line and "target 20% < 40.0%" in line
                for line in lines)
     assert any("novelty_feature = True" in line and "PASS" in line for line in lines)
 
@@ -117,3 +117,12 @@ def test_a_damaged_run_is_refused_naming_its_folder(runs, tmp_path, capsys, dama
     with pytest.raises(SystemExit) as stop:
         compare_runs.main([*map(str, runs), "--out", str(tmp_path / "x.png")])
     assert stop.value.code == 2 and f"{folder}: " in capsys.readouterr().err
+
+
+def test_a_target_just_under_the_bar_shows_the_bar_unrounded(tmp_path) -> None:
+    """7 of 50 against 0.8 x 9 of 50: 14% < 14.4%, which whole percents would print as 14% < 14%."""
+    folder = _run(tmp_path / "close", {}, {"latent_classifier": (0.0, 0.14, 0.95)})
+    (folder / "results.csv").write_text((folder / "results.csv").read_text().replace(
+        "literal,,,,50,0.5,0.45,0.55,0.5,", "literal,,,,50,0.5,0.45,0.55,0.18,"))
+    line, = compare_runs.summary_lines(compare_runs.load_runs([folder], "training_worlds"), "training_worlds")
+    assert "target 14% < 14.4% (0.8 x literal's 18%)" in line

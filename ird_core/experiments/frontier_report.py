@@ -53,7 +53,7 @@ def goal_check(summaries: Sequence[CellSummary]) -> list[str]:
             if s.lava_fraction > GOAL_LAVA:
                 misses.append(f"lava {_pct(s.lava_fraction)}% > {_pct(GOAL_LAVA)}%")
             if s.target_fraction < want_target:
-                misses.append(f"target {_pct(s.target_fraction)}% < {_pct(want_target)}% (0.8 x literal's "
+                misses.append(f"target {_pct(s.target_fraction)}% < {100 * want_target:.1f}% (0.8 x literal's "
                               f"{_pct(literal.target_fraction)}%)")
             if not s.gap_closed >= GOAL_GAP:
                 misses.append(f"gap closed {_pct(s.gap_closed)}% [{_pct(s.gap_ci_low)}, {_pct(s.gap_ci_high)}] "
