@@ -143,6 +143,16 @@ def test_launch_graph_hypothesis_options_reach_the_world_node_only() -> None:
     assert "hypothesis:=linear" in only_novel.ros_args and "novelty_feature:=true" in only_novel.ros_args
 
 
+def test_launch_graph_training_worlds_reach_the_world_node_only(capsys: pytest.CaptureFixture[str]) -> None:
+    parser = launch_graph.build_parser()
+    by_name = {s.name: s for s in launch_graph._node_table(parser.parse_args(["--training-worlds", "3"]))}
+    assert by_name["world"].ros_args[-2:] == ("-p", "training_worlds:=3")
+    assert all("training_worlds:=3" not in s.ros_args for name, s in by_name.items() if name != "world")
+    for bad in ("0", "17"):
+        assert launch_graph.main(["--training-worlds", bad]) == 2
+        assert "--training-worlds: training_worlds must be an integer in [1, 16]" in capsys.readouterr().err
+
+
 def test_launch_graph_refuses_a_bad_rff_count(capsys: pytest.CaptureFixture[str]) -> None:
     assert launch_graph.main(["--hypothesis", "rff", "--rff-features", "0"]) == 2
     assert "--rff-features: rff_features" in capsys.readouterr().err

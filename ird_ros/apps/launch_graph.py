@@ -36,7 +36,8 @@ wrong (a start on a terrain no training world shows) is printed as a ``[launcher
 --hypothesis rff, --rff-features D, --novelty-feature: IRD's hypothesis space (default: the
 params file's, the paper's linear space): the world node then also publishes
 /world/hypothesis/{train,test}_features and poses /ird/infer in that space
-(``ird_core.hypothesis``; docs/spec.md section 6).
+(``ird_core.hypothesis``; docs/spec.md section 6). --training-worlds K: a generated Lavaland
+has K training worlds, the proxy observed in each (``ird_core.worlds.training_worlds``).
 
 --mission [N] (N = 1 without a number): once the graph is ready, a client sends Rob navigation
 goals through the navigator's action /ird/navigate: for each seed 0..N-1 it generates that seed's
@@ -69,13 +70,14 @@ import time
 from pathlib import Path
 
 from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, HypothesisSpace
+from ird_core.worlds.training_worlds import MAX_TRAINING_WORLDS, check_training_worlds
 from ird_core.worlds.world_file import load_world_file
 from ird_ros.arg_types import seconds, seconds_or_zero
 from ird_ros.graph import DEFAULT_NODES, NODES, NODES_BY_NAME, NodeSpec, names
 from ird_ros.graph.domains import DDS_NETWORK_VAR, domain_banner
 from ird_ros.launch import GraphLauncher, LaunchError, OutputMode
 from ird_ros.launch.plan import with_viz_port
-from ird_ros.nodes.world import with_hypothesis, with_world_file
+from ird_ros.nodes.world import with_generated_training_worlds, with_hypothesis, with_world_file
 
 __all__ = ["main", "build_parser"]
 
@@ -122,6 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"random Fourier features of --hypothesis rff (default {DEFAULT_RFF_FEATURES})")
     parser.add_argument("--novelty-feature", action="store_true",
                         help="add the hypothesis feature 'novel' (zero in training)")
+    parser.add_argument("--training-worlds", type=int, default=None, metavar="K",
+                        help=f"training worlds of a generated Lavaland, 1..{MAX_TRAINING_WORLDS} (default: the params "
+                             "file's, 1; ird_core.worlds.training_worlds)")
     parser.add_argument("--params", type=Path, default=None, help="ROS params file (default: msgs_config/params/graph.yaml)")
     parser.add_argument("--record", type=Path, default=None, metavar="DIR", help="record a bag (MCAP) into this new folder")
     parser.add_argument("--record-topics", type=_csv, default=None, help="topics to record (default: params file, else all)")
@@ -218,6 +223,12 @@ def _node_table(args: argparse.Namespace) -> list[NodeSpec] | None:
         except ValueError as exc:
             raise ValueError(f"--rff-features: {exc}") from None  # the one field argparse leaves unchecked
         specs = with_hypothesis(specs if specs is not None else NODES, space)
+    if args.training_worlds is not None:
+        try:
+            check_training_worlds(args.training_worlds)
+        except ValueError as exc:
+            raise ValueError(f"--training-worlds: {exc}") from None
+        specs = with_generated_training_worlds(specs if specs is not None else NODES, args.training_worlds)
     if args.world is None:
         return specs
     try:

@@ -18,8 +18,9 @@ header stamp, so subscribers can pair them):
 - ``/world/terrain`` (TerrainGrid): ground-truth terrain of the test map, one-hot probabilities.
 - ``/world/infer_request`` (``ird_msgs/srv/InferReward_Request``): the /ird/infer request this
   world poses: training map, start, horizon, proxy weights, ``proxy_map`` (when the proxy is
-  defined on a classifier's outputs) and ``training_worlds`` (a world file's training worlds
-  after the first; empty for Lavaland). A client sets beta, method, num_samples, seed and
+  defined on a classifier's outputs) and ``training_worlds`` (the training worlds after the
+  first: a world file's, or a generated Lavaland's with the parameter ``training_worlds`` above 1,
+  ``ird_core.worlds.training_worlds``). A client sets beta, method, num_samples, seed and
   calls /ird/infer (``scripts/call_inference.py --from-world`` does). Its ``training_map``
   carries the generation's stamp.
 - ``/world/proxy`` (ProxyReward): condition, seed, the proxy's feature names and weights, the
@@ -74,6 +75,7 @@ from ird_core.hypothesis import DEFAULT_RFF_FEATURES, HYPOTHESES, NOVELTY_VALUES
 from ird_core.vocabulary import Condition, parse
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.observations import DEFAULT_DIM
+from ird_core.worlds.training_worlds import MAX_TRAINING_WORLDS, with_training_worlds
 from ird_msgs.msg import FeatureGrid, ProxyReward, TerrainGrid, TrainingWorld
 from ird_msgs.srv import GenerateWorld, InferReward
 from ird_ros import conversions as conv
@@ -84,7 +86,7 @@ from ird_ros.runtime.node_params import Param
 from ird_ros.runtime.offload import service_qos
 
 __all__ = ["WorldNode", "PARAMETERS", "TOPIC_INFER_REQUEST", "infer_request", "with_world_file", "with_hypothesis",
-           "main"]
+           "with_generated_training_worlds", "main"]
 
 TOPIC_INFER_REQUEST = names.TOPIC_INFER_REQUEST
 
@@ -110,6 +112,9 @@ PARAMETERS: dict[str, Param] = {
     "novelty_feature": Param(False, "Append the hypothesis feature 'novel' (zero in training; on test cells "
                                     "unlike every training cell, the training features' scale)"),
     "novelty_value": Param("feature_scale", "The novel feature's value on novel cells", choices=NOVELTY_VALUES),
+    "training_worlds": Param(1, "Training worlds of a generated Lavaland (the first on /world/train_features, the "
+                                "others in /world/infer_request's training_worlds)", min_value=1,
+                             max_value=MAX_TRAINING_WORLDS),
 }
 
 
@@ -157,6 +162,14 @@ def with_hypothesis(specs: Sequence[Any], space: HypothesisSpace) -> list[Any]:
             for s in specs]
 
 
+def with_generated_training_worlds(specs: Sequence[Any], count: int) -> list[Any]:
+    """Node specs whose world node gives a generated Lavaland ``count`` training worlds
+    (``-p training_worlds:=<count>`` after the params file; the launcher's ``--training-worlds``)."""
+    args = ("-p", f"training_worlds:={int(count)}")
+    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + args) if s.name == names.NODE_WORLD else s
+            for s in specs]
+
+
 class WorldNode(ManagedNode):
     """The world (managed: its first world is made at configure and published at activate)."""
 
@@ -169,6 +182,7 @@ class WorldNode(ManagedNode):
         self.condition, self.seed = p["condition"], p["seed"]
         self.height, self.width, self.horizon = p["height"], p["width"], p["horizon"]
         self.obs_dim, self.resolution = p["obs_dim"], p["resolution"]
+        self.training_worlds = int(p["training_worlds"])
         self.space = HypothesisSpace(p["hypothesis"], int(p["rff_features"]), bool(p["novelty_feature"]),
                                      p["novelty_value"])
         self.world_file: world_file.WorldFile | None = None
@@ -226,8 +240,9 @@ class WorldNode(ManagedNode):
     def generate(self, condition: str, seed: int) -> lavaland.LavalandInstance:
         """Make and publish a new instance (raises ``ValueError`` naming a bad argument)."""
         kind = parse(Condition, condition, "condition")
-        instance = lavaland.make_instance(
-            kind, int(seed), size=(self.height, self.width), horizon=self.horizon, obs_dim=self.obs_dim)
+        instance = with_training_worlds(lavaland.make_instance(
+            kind, int(seed), size=(self.height, self.width), horizon=self.horizon, obs_dim=self.obs_dim),
+            self.training_worlds)
         self.instance = instance
         self.condition, self.seed = kind.value, int(seed)
         self._publish(instance, self.resolution, (0.0, 0.0))

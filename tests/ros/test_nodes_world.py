@@ -11,6 +11,7 @@ import yaml
 
 from ird_core.worlds import lavaland, world_file
 from ird_core.worlds.terrain import TERRAIN_NAMES
+from ird_core.worlds.training_worlds import with_training_worlds
 from ird_msgs.msg import ProxyReward
 from ird_ros import conversions as conv
 from ird_ros.client import CallResult, CallStatus, IrdClient
@@ -252,6 +253,31 @@ def test_world_file_is_published_with_every_training_world() -> None:
         assert again.ok, again.message
         back = probe.messages(lavaland.FILE_CONDITION, inst.seed, since=mark)
         assert back[names.TOPIC_PROXY].header.stamp != msgs[names.TOPIC_PROXY].header.stamp
+
+
+def test_generated_training_worlds_travel_in_the_infer_request() -> None:
+    """``training_worlds:=3``: /world/train_features is the one-world instance's first map, and
+    /world/infer_request carries the two extra worlds of ``with_training_worlds`` (latent_classifier:
+    each with its classifier map as the proxy map). A domain of its own, like the file test."""
+    inst = with_training_worlds(lavaland.make_instance("latent_classifier", 5, size=(H, W), horizon=T, obs_dim=OBS), 3)
+    args = world_args("latent_classifier", 5) + ["-p", "training_worlds:=3"]
+    with lease_domain() as lease, \
+            spawn_node_process(args, domain=lease, name="worlds3", ready_text="world ready") as proc, \
+            IrdClient(lease.domain_id, node_name="worlds3_probe", processes=[proc]) as ird:
+        probe = Probe(ird, proc)
+        requests = ird.received(names.TOPIC_INFER_REQUEST)
+        msgs = probe.messages("latent_classifier", 5)
+        ird.world_infer_request(timeout=20.0)
+        train = conv.feature_grid_from_msg(msgs[names.TOPIC_TRAIN_FEATURES])
+        assert np.array_equal(train.features, inst.train_features.astype(np.float32))
+        sent = requests[-1].training_worlds
+        assert len(sent) == 2
+        for world, extra in zip(sent, inst.extra_training_worlds):
+            assert np.array_equal(conv.feature_grid_from_msg(world.training_map).features,
+                                  extra.features.astype(np.float32))
+            assert np.array_equal(conv.feature_grid_from_msg(world.proxy_map).features,
+                                  extra.proxy_features.astype(np.float32))
+            assert (world.start_row, world.start_col, world.horizon) == (*extra.start, extra.horizon)
 
 
 def test_generate_file_without_a_world_file_is_rejected(probe: Probe) -> None:
