@@ -126,6 +126,7 @@ NODES: tuple[NodeSpec, ...] = (
             names.TOPIC_HYPOTHESIS_TRAIN_FEATURES,
             names.TOPIC_TRAIN_FEATURES,
             names.TOPIC_TRAIN_PROXY_FEATURES,
+            names.TOPIC_INFER_REQUEST,
             names.TOPIC_PROXY,
             names.TOPIC_POSTERIOR,
         ),

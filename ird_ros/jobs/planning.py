@@ -117,7 +117,8 @@ class PlanJob:
     reference_job: ReferenceJob | None
     time_limit: float | None
     risk: Risk = MIN_RISK
-    scale_features: "np.ndarray | None" = None  # (H, W, d) training map: samples scaled by their spread on it
+    scale_features: "np.ndarray | tuple[np.ndarray, ...] | None" = None  # (H, W, d) training map(s): samples
+    # scaled by their spread over them
 
 
 def reference_features(job: ReferenceJob) -> np.ndarray:

@@ -25,9 +25,11 @@ Keeps the latest (latched) ``/world/hypothesis/test_features``, ``/world/test_fe
   (``/world/hypothesis/train_features`` or ``/world/train_features`` for posterior samples,
   ``/world/train_proxy_features`` for the proxy's own weights).
 - ``sample_scale`` (default ``training_spread``): IRD plans divide each sample by its reward range
-  over the training map with their layers (``/world/hypothesis/train_features`` or
-  ``/world/train_features``; ``ird_core.planning.sample_scale``); without that map they are
-  planned unscaled and the message says so (``sample_scale=none (...)``).
+  over the training maps with their layers (``/world/hypothesis/train_features`` or
+  ``/world/train_features``, and the other training worlds of the same generation's
+  ``/world/infer_request`` whose layers match, as the experiments scale over every training
+  world; ``ird_core.planning.sample_scale``); without the first map they are planned unscaled
+  and the message says so (``sample_scale=none (...)``).
 
 Every field is validated before the plan is queued (``success: false``, the message starts with
 the field's name): sizes first, from the declared lengths before anything is decoded (the map's
@@ -92,7 +94,7 @@ from ird_core.mdp import GridMDP
 from ird_core.planning.risk_measures import MAX_LAMBDA, MIN_RISK
 from ird_core.vocabulary import RISK_MEASURES, Baseline, PlanMode
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
-from ird_msgs.srv import PlanPath
+from ird_msgs.srv import InferReward, PlanPath
 from ird_ros import conversions as conv
 from ird_ros.graph import names
 from ird_ros.conversions.sizes import check_grid_size, check_text, grid_is_empty
@@ -211,6 +213,8 @@ class PlannerNode(ManagedNode):
         for topic in (*TEST_MAP_TOPICS, *TRAIN_MAP_TOPICS, names.TOPIC_TRAIN_PROXY_FEATURES):
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
+        self.infer_request: InferReward.Request | None = None  # the world's: its other training worlds
+        self.create_subscription(InferReward.Request, names.TOPIC_INFER_REQUEST, self._on_infer_request, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
         self.create_service(PlanPath, names.SRV_PLAN, self._on_plan, qos_profile=service_qos(),
                             # Own reentrant group: a pending (awaiting) request must not hold the
@@ -240,6 +244,9 @@ class PlannerNode(ManagedNode):
 
     def _on_proxy(self, msg: ProxyReward) -> None:
         self.proxy = msg
+
+    def _on_infer_request(self, msg: InferReward.Request) -> None:
+        self.infer_request = msg  # decoded when a plan needs its training worlds
 
     def _on_posterior(self, msg: RewardPosterior) -> None:
         try:
@@ -378,9 +385,10 @@ class PlannerNode(ManagedNode):
                 return candidate
         raise ValueError(f"map: empty and no perceived test map fits {num_values} weight values")
 
-    def _scale_features(self, feature_names: tuple[str, ...], sources: list[str]) -> "np.ndarray | None":
-        """The training map the samples are scaled on (``sample_scale``), or ``None`` (unscaled;
-        ``sources`` then says why)."""
+    def _scale_features(self, feature_names: tuple[str, ...], sources: list[str]
+                        ) -> "np.ndarray | tuple[np.ndarray, ...] | None":
+        """The training map(s) the samples are scaled on (``sample_scale``), or ``None``
+        (unscaled; ``sources`` then says why)."""
         if self.sample_scale == "none":
             return None
         found = conv.first_with_layers(self.maps, TRAIN_MAP_TOPICS, feature_names)
@@ -388,7 +396,27 @@ class PlannerNode(ManagedNode):
             sources.append(f"sample_scale=none (no training map with the weights' layers on {' or '.join(TRAIN_MAP_TOPICS)})")
             return None
         sources.append(f"sample_scale=training_spread@{found[0]}@{self._stamps[found[0]]}")
-        return found[1].features.astype(np.float64)
+        first = found[1].features.astype(np.float64)
+        extra = self._other_training_maps(self._stamps[found[0]], feature_names)
+        if not extra:
+            return first
+        sources.append(f"+{len(extra)} training worlds@{names.TOPIC_INFER_REQUEST}@{self._stamps[found[0]]}")
+        return (first, *extra)
+
+    def _other_training_maps(self, stamp: str, feature_names: tuple[str, ...]) -> list[np.ndarray]:
+        """The training maps of the world's other training worlds, from the latest
+        ``/world/infer_request`` of the generation stamped ``stamp``, when every one has
+        ``feature_names`` as its layers (else none: the samples are scaled on the first alone)."""
+        request = self.infer_request
+        if request is None or not request.training_worlds:
+            return []
+        if stamp_text(request.training_map.header.stamp) != stamp:  # another generation's
+            return []
+        maps = [conv.feature_grid_from_msg(world.training_map, field=f"training_worlds[{i}].training_map")
+                for i, world in enumerate(request.training_worlds)]
+        if any(grid.layers != tuple(feature_names) for grid in maps):
+            return []
+        return [grid.features.astype(np.float64) for grid in maps]
 
     def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
         """The default reference features' inputs from the latest proxy and training maps, and

@@ -17,6 +17,7 @@ from nav_msgs.msg import Path as PathMsg
 from ird_core import planning, posterior
 from ird_core.mdp import GridMDP
 from ird_core.worlds import lavaland
+from ird_core.worlds.training_worlds import with_training_worlds
 from ird_msgs.msg import FeatureGrid, PlanInfo, ProxyReward, RewardPosterior
 from ird_msgs.srv import PlanPath
 from ird_ros import conversions as conv
@@ -38,7 +39,7 @@ SEED = 13
 def graph(ros_domain: DomainLease) -> Iterator[list[NodeProcess]]:
     world_args = ["-m", "ird_ros.nodes.world", "--ros-args", "--params-file", PARAMS, "-p", "condition:=side_effects",
                   "-p", f"seed:={SEED}", "-p", f"height:={H}", "-p", f"width:={W}", "-p", f"horizon:={T}",
-                  "-p", f"obs_dim:={OBS}", "-p", "resolution:=0.25"]
+                  "-p", f"obs_dim:={OBS}", "-p", "resolution:=0.25", "-p", "training_worlds:=2"]
     perception_args = ["-m", "ird_ros.nodes.perception", "--ros-args", "--params-file", PARAMS]
     planner_args = ["-m", "ird_ros.nodes.planner", "--ros-args", "--params-file", PARAMS,
                     "-p", "replan_on_posterior:=true", "-p", "default_mode:=per_step",
@@ -229,7 +230,8 @@ def test_bad_risks_are_refused_naming_the_field_and_the_planner_keeps_serving(pr
 
 def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) -> None:
     proxy, stamp = generation(probe, graph, "side_effects", SEED + 1)
-    inst = lavaland.make_instance("side_effects", SEED + 1, size=(H, W), horizon=T, obs_dim=OBS)
+    inst = with_training_worlds(lavaland.make_instance("side_effects", SEED + 1, size=(H, W), horizon=T,
+                                                       obs_dim=OBS), 2)
     gen = stamp_text(stamp)
     samples = np.random.default_rng(0).normal(size=(6, 4))
     request = dict(start_row=proxy.test_start_row, start_col=proxy.test_start_col, horizon=proxy.test_horizon,
@@ -237,8 +239,10 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     # Before the posterior: the planner holds this generation's test map, proxy and training maps
     # (explicit weights, defaulted map and reference), so the replan below plans on them.
     # map, the reference's three inputs and the training map the samples are scaled on
-    scaled_on = f"sample_scale=training_spread@{names.TOPIC_TRAIN_FEATURES}@{gen}"
-    plan_when(probe, graph, lambda m: m.count(gen) == 5 and f"map={names.TOPIC_TEST_FEATURES}@{gen}" in m
+    # (the world has two training worlds: the second from /world/infer_request, same generation)
+    scaled_on = (f"sample_scale=training_spread@{names.TOPIC_TRAIN_FEATURES}@{gen}, "
+                 f"+1 training worlds@{names.TOPIC_INFER_REQUEST}@{gen}")
+    plan_when(probe, graph, lambda m: m.count(gen) == 6 and f"map={names.TOPIC_TEST_FEATURES}@{gen}" in m
               and scaled_on in m,
               **request, weights=samples.reshape(-1).tolist(), label="before_the_posterior")
 
@@ -266,7 +270,7 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
                                            "proxy_train_features": f32(inst.proxy_train_features)})
     f_ref = posterior.proxy_feature_expectations(rounded) / (T + 1)
     mdp = GridMDP(f32(inst.test_features), inst.test_start, T)
-    scaled = planning.normalise_samples(samples, f32(inst.train_features))  # sample_scale: training_spread
+    scaled = planning.normalise_samples(samples, [f32(m) for m in inst.training_maps])  # sample_scale: training_spread
     expected = planning.plan_path(mdp, scaled, "per_step", "training_features", f_ref)
 
     # replan_on_posterior: the planner planned on its own when the posterior arrived. Until the
@@ -285,7 +289,7 @@ def test_defaults_risk_map_and_replan(probe: Probe, graph: list[NodeProcess]) ->
     spin_until(probe.node, lambda: any(p.header.stamp == replan.header.stamp for p in probe.plans), timeout=20.0,
                what="/plan of the replan", processes=graph)
 
-    response = plan_when(probe, graph, lambda m: m.count(gen) == 5 and stamp_text(msg.header.stamp) in m
+    response = plan_when(probe, graph, lambda m: m.count(gen) == 6 and stamp_text(msg.header.stamp) in m
                          and scaled_on in m, **request)
     assert f"map={names.TOPIC_TEST_FEATURES}@{gen}" in response.message
     assert list(zip(response.rows, response.cols)) == list(expected.cells)
