@@ -128,6 +128,7 @@ __all__ = [
     "DEFAULT_SIZE",
     "DEFAULT_HORIZON",
     "FILE_CONDITION",
+    "INSTANCE_STREAMS",
     "TrainingWorld",
     "LavalandInstance",
     "check_instance_arguments",
@@ -326,6 +327,11 @@ class _Streams(NamedTuple):
     gold: np.random.SeedSequence
 
 
+#: How many ``SeedSequence(seed)`` children an instance's streams use (children 0 to 8); later
+#: children are free for what is drawn beside an instance (``ird_core.worlds.training_worlds``).
+INSTANCE_STREAMS: int = len(_Streams._fields)
+
+
 class _Maps(NamedTuple):
     train_labels: np.ndarray
     test_labels: np.ndarray
@@ -467,7 +473,7 @@ def make_instance(
         ValueError: naming the argument (:func:`check_instance_arguments`), before any work.
     """
     kind, height, width = check_instance_arguments(condition, seed, size, horizon, obs_dim)
-    streams = _Streams(*np.random.SeedSequence(int(seed)).spawn(9))  # the first 8 children equal spawn(8)'s
+    streams = _Streams(*np.random.SeedSequence(int(seed)).spawn(INSTANCE_STREAMS))  # the first 8 equal spawn(8)'s
     maps = _sample_maps(streams, dataclasses.replace(train_map, height=height, width=width),
                         dataclasses.replace(test_map, height=height, width=width), horizon)
     parts = _CONDITION_FEATURES[kind](maps, streams, obs_dim)

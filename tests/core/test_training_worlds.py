@@ -14,7 +14,7 @@ import pytest
 from ird_core import posterior
 from ird_core.experiments import cli, trials
 from ird_core.worlds import lavaland
-from ird_core.worlds.terrain import Terrain
+from ird_core.worlds.terrain import TRAIN_MAP, Terrain
 from ird_core.worlds.training_worlds import MAX_TRAINING_WORLDS, with_training_worlds
 
 SMALL = dict(size=8, horizon=10, obs_dim=6)
@@ -138,3 +138,12 @@ def test_a_one_world_trial_is_the_default_trial_bit_for_bit() -> None:
     assert strip(plain) == strip(one)
     assert [r.cells for r in three if r.planner in ("literal", "oracle")] == \
         [r.cells for r in plain if r.planner in ("literal", "oracle")]
+
+
+def test_the_extra_worlds_follow_the_training_map_distribution_given() -> None:
+    """An instance made from another training distribution passes it on: two targets per map."""
+    two = dataclasses.replace(TRAIN_MAP, num_targets=2)
+    inst = lavaland.make_instance("side_effects", 2, train_map=two, **SMALL)
+    more = with_training_worlds(inst, 3, train_map=two)
+    assert [np.count_nonzero(w.labels == Terrain.TARGET) for w in more.extra_training_worlds] == [2, 2]
+    assert np.count_nonzero(with_training_worlds(inst, 2).extra_training_worlds[0].labels == Terrain.TARGET) == 1
