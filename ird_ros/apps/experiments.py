@@ -23,6 +23,7 @@ import argparse  # noqa: E402
 import sys  # noqa: E402
 
 from ird_core.experiments import cli  # noqa: E402
+from ird_core.experiments.trials import TrialSpec  # noqa: E402
 from ird_ros.apps import experiments_via_ros  # noqa: E402
 
 __all__ = ["VIA_ROS_EPILOG", "build_parser", "main"]
@@ -44,6 +45,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _refuse_unhonoured(args: argparse.Namespace) -> None:
+    """``ValueError`` naming the first model flag given away from its default: ``--via-ros``
+    runs the graph as its parameters set it (the params file; ``launch_graph.py`` for the
+    hypothesis space and training worlds), so such a flag would be silently ignored."""
+    defaults = TrialSpec("side_effects", 0)
+    for field in cli.MODEL_FLAGS:
+        value = getattr(args, field, None)
+        if value is not None and value != getattr(defaults, field):
+            raise ValueError(f"--{field.replace('_', '-')}: not supported with --via-ros (the graph's parameters "
+                             f"decide it: msgs_config/params/graph.yaml, launch_graph.py)")
+
+
 def main(argv: list[str] | None = None) -> int:
     """The experiments, through the graph with ``--via-ros``; exit status 0, 1 (a --via-ros
     disagreement) or 2 (a bad argument)."""
@@ -56,6 +69,8 @@ def main(argv: list[str] | None = None) -> int:
         settings = cli.trial_settings(args)
         if args.via_ros and args.world is not None:
             raise ValueError("--world: not supported with --via-ros (use launch_graph.py --world FILE)")
+        if args.via_ros:
+            _refuse_unhonoured(args)
         conditions = cli.world_conditions(args, settings)
     except ValueError as exc:
         print(exc, file=sys.stderr)
