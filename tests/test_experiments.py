@@ -463,7 +463,8 @@ def test_ros_entry_point_is_the_core_command_line_plus_via_ros(tmp_path, capsys)
     # The graph's parameters decide the model: a model flag away from its default would be ignored.
     for flags, named in ((["--training-worlds", "3"], "--training-worlds"),
                          (["--novelty-feature"], "--novelty-feature"), (["--hypothesis", "rff"], "--hypothesis"),
-                         (["--temperature", "0.5"], "--temperature"), (["--risk", "cvar", "--risk-level", "0.1"], "--risk")):
+                         (["--temperature", "0.5"], "--temperature"),
+                         (["--risk", "cvar", "--risk-level", "0.1"], "--risk")):
         assert app.main(["--via-ros", *flags, "--out", str(tmp_path)]) == 2, flags
         assert f"{named}: not supported with --via-ros" in capsys.readouterr().err
 
