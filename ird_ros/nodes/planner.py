@@ -213,7 +213,8 @@ class PlannerNode(ManagedNode):
         for topic in (*TEST_MAP_TOPICS, *TRAIN_MAP_TOPICS, names.TOPIC_TRAIN_PROXY_FEATURES):
             self.create_subscription(FeatureGrid, topic, lambda msg, t=topic: self._on_map(t, msg), latched)
         self.create_subscription(ProxyReward, names.TOPIC_PROXY, self._on_proxy, latched)
-        self.infer_request: InferReward.Request | None = None  # the world's: its other training worlds
+        # The world's other training worlds: (stamp of its generation, their maps), decoded once.
+        self._other_worlds: tuple[str, list[conv.FeatureGridData]] = ("", [])
         self.create_subscription(InferReward.Request, names.TOPIC_INFER_REQUEST, self._on_infer_request, latched)
         self.create_subscription(RewardPosterior, names.TOPIC_POSTERIOR, self._on_posterior, latched)
         self.create_service(PlanPath, names.SRV_PLAN, self._on_plan, qos_profile=service_qos(),
@@ -246,7 +247,13 @@ class PlannerNode(ManagedNode):
         self.proxy = msg
 
     def _on_infer_request(self, msg: InferReward.Request) -> None:
-        self.infer_request = msg  # decoded when a plan needs its training worlds
+        try:
+            grids = [conv.feature_grid_from_msg(world.training_map, field=f"training_worlds[{i}].training_map")
+                     for i, world in enumerate(msg.training_worlds)]
+        except ValueError as exc:
+            self.get_logger().error(f"ignoring a bad {names.TOPIC_INFER_REQUEST}: {exc}")
+            grids = []
+        self._other_worlds = (stamp_text(msg.training_map.header.stamp), grids)
 
     def _on_posterior(self, msg: RewardPosterior) -> None:
         try:
@@ -407,16 +414,10 @@ class PlannerNode(ManagedNode):
         """The training maps of the world's other training worlds, from the latest
         ``/world/infer_request`` of the generation stamped ``stamp``, when every one has
         ``feature_names`` as its layers (else none: the samples are scaled on the first alone)."""
-        request = self.infer_request
-        if request is None or not request.training_worlds:
-            return []
-        if stamp_text(request.training_map.header.stamp) != stamp:  # another generation's
-            return []
-        maps = [conv.feature_grid_from_msg(world.training_map, field=f"training_worlds[{i}].training_map")
-                for i, world in enumerate(request.training_worlds)]
-        if any(grid.layers != tuple(feature_names) for grid in maps):
-            return []
-        return [grid.features.astype(np.float64) for grid in maps]
+        generation, grids = self._other_worlds
+        if generation != stamp or any(grid.layers != tuple(feature_names) for grid in grids):
+            return []  # another generation's, or not in the samples' space
+        return [grid.features.astype(np.float64) for grid in grids]
 
     def _reference_job(self, feature_names: tuple[str, ...]) -> tuple[ReferenceJob, list[str]]:
         """The default reference features' inputs from the latest proxy and training maps, and

@@ -143,31 +143,31 @@ def infer_request(inst: lavaland.LavalandInstance, **geometry: Any) -> InferRewa
     return request
 
 
+def _with_parameters(specs: Sequence[Any], nodes: tuple[str, ...], values: Sequence[tuple[str, Any]]) -> list[Any]:
+    """Node specs (``ird_ros.graph.NodeSpec``) whose ``nodes`` get ``-p name:=value`` for each of
+    ``values`` after the params file (so they override it); the other specs unchanged."""
+    args = tuple(arg for name, value in values for arg in ("-p", f"{name}:={value}"))
+    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + args) if s.name in nodes else s for s in specs]
+
+
 def with_world_file(specs: Sequence[Any], path: str | Path) -> list[Any]:
-    """Node specs (``ird_ros.graph.NodeSpec``) whose world and perception nodes load the
-    world file ``path``: ``-p world_file:=<absolute path>`` after the params file."""
-    arg = ("-p", f"world_file:={Path(path).resolve()}")
-    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + arg)
-            if s.name in (names.NODE_WORLD, names.NODE_PERCEPTION) else s for s in specs]
+    """Node specs whose world and perception nodes load the world file ``path``:
+    ``-p world_file:=<absolute path>``."""
+    return _with_parameters(specs, (names.NODE_WORLD, names.NODE_PERCEPTION), [("world_file", Path(path).resolve())])
 
 
 def with_hypothesis(specs: Sequence[Any], space: HypothesisSpace) -> list[Any]:
     """Node specs whose world node publishes in the hypothesis space ``space``: its four
-    parameters as ``-p`` arguments after the params file (the launcher's ``--hypothesis``,
-    ``--rff-features``, ``--novelty-feature``)."""
-    values = (("hypothesis", space.kind), ("rff_features", space.rff_features),
-              ("novelty_feature", str(space.novelty_feature).lower()), ("novelty_value", space.novelty_value))
-    args = tuple(arg for name, value in values for arg in ("-p", f"{name}:={value}"))
-    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + args) if s.name == names.NODE_WORLD else s
-            for s in specs]
+    parameters (the launcher's ``--hypothesis``, ``--rff-features``, ``--novelty-feature``)."""
+    return _with_parameters(specs, (names.NODE_WORLD,), [
+        ("hypothesis", space.kind), ("rff_features", space.rff_features),
+        ("novelty_feature", str(space.novelty_feature).lower()), ("novelty_value", space.novelty_value)])
 
 
 def with_generated_training_worlds(specs: Sequence[Any], count: int) -> list[Any]:
     """Node specs whose world node gives a generated Lavaland ``count`` training worlds
-    (``-p training_worlds:=<count>`` after the params file; the launcher's ``--training-worlds``)."""
-    args = ("-p", f"training_worlds:={int(count)}")
-    return [dataclasses.replace(s, ros_args=tuple(s.ros_args) + args) if s.name == names.NODE_WORLD else s
-            for s in specs]
+    (``-p training_worlds:=<count>``; the launcher's ``--training-worlds``)."""
+    return _with_parameters(specs, (names.NODE_WORLD,), [("training_worlds", int(count))])
 
 
 class WorldNode(ManagedNode):
